@@ -1,0 +1,342 @@
+"""The one PyBullet facade: it owns a physics client and addresses bodies, joints and cameras by name.
+
+Nothing else in the project calls ``pybullet``; every env owns one :class:`Sim`, so several envs in
+one process are independent. Quaternions are ``(x, y, z, w)`` as PyBullet gives them.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet
+from pybullet_utils.bullet_client import BulletClient
+
+from hoap_actions.errors import EnvClosedError, InvalidInputError
+from hoap_actions.urdf import urdf_path
+
+logger = logging.getLogger(__name__)
+
+TIMESTEP = 1.0 / 240.0  # PyBullet's default rate; the controllers tick at this rate
+
+
+@dataclass(frozen=True)
+class JointInfo:
+    """Static facts of one movable joint, read from the loaded model."""
+
+    index: int
+    name: str
+    link_name: str
+    lower: float
+    upper: float
+    max_force: float
+    max_velocity: float
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera fixed in the world: eye and target points (m), vertical field of view (deg)."""
+
+    eye: tuple[float, float, float]
+    target: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    fov_deg: float = 60.0
+    near: float = 0.02
+    far: float = 3.0
+    width: int = 320
+    height: int = 240
+
+    def view_matrix(self) -> np.ndarray:
+        """4x4 world-to-camera matrix (OpenGL convention, camera looks down its -z)."""
+        eye, target, up = (np.asarray(v, float) for v in (self.eye, self.target, self.up))
+        forward = target - eye
+        forward /= np.linalg.norm(forward)
+        side = np.cross(forward, up)
+        side /= np.linalg.norm(side)
+        true_up = np.cross(side, forward)
+        view = np.eye(4)
+        view[0, :3], view[1, :3], view[2, :3] = side, true_up, -forward
+        view[:3, 3] = -view[:3, :3] @ eye
+        return view
+
+    def projection_matrix(self) -> np.ndarray:
+        """4x4 OpenGL perspective projection for this camera's aspect ratio."""
+        aspect = self.width / self.height
+        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2.0)
+        n, fa = self.near, self.far
+        return np.array(
+            [
+                [f / aspect, 0.0, 0.0, 0.0],
+                [0.0, f, 0.0, 0.0],
+                [0.0, 0.0, (fa + n) / (n - fa), 2.0 * fa * n / (n - fa)],
+                [0.0, 0.0, -1.0, 0.0],
+            ]
+        )
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Pixel coordinates (u right, v down) of world points ``(N, 3)``; returns ``(N, 2)``."""
+        pts = np.atleast_2d(np.asarray(points, float))
+        homogeneous = np.c_[pts, np.ones(len(pts))] @ (self.projection_matrix() @ self.view_matrix()).T
+        ndc = homogeneous[:, :2] / homogeneous[:, 3:4]
+        u = (ndc[:, 0] + 1.0) * 0.5 * self.width
+        v = (1.0 - ndc[:, 1]) * 0.5 * self.height
+        return np.c_[u, v]
+
+
+@dataclass(frozen=True)
+class CameraImage:
+    """One rendered view: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres, ``segmentation`` (H, W) body ids."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    segmentation: np.ndarray
+
+
+class Sim:
+    """A PyBullet world: load bodies under names, step, save/restore state, render cameras.
+
+    ``gui=True`` opens PyBullet's window (render_mode ``"human"``); otherwise the server is
+    ``DIRECT`` and images come from the headless TinyRenderer.
+    """
+
+    def __init__(self, gui: bool = False, timestep: float = TIMESTEP, shadows: bool = False) -> None:
+        self._client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        self.timestep = float(timestep)
+        self.shadows = shadows
+        self.gui = gui
+        self._bodies: dict[str, int] = {}
+        self._joints: dict[str, list[JointInfo]] = {}
+        self.cameras: dict[str, Camera] = {}
+        p = self._client
+        p.setTimeStep(self.timestep)
+        p.setGravity(0.0, 0.0, -9.81)
+        # Same seed, same episode: make broad-phase pair order independent of insertion history.
+        p.setPhysicsEngineParameter(deterministicOverlappingPairs=1)
+        if gui:
+            p.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
+            p.configureDebugVisualizer(pybullet.COV_ENABLE_SHADOWS, int(shadows))
+
+    # ----------------------------------------------------------------- lifetime
+    @property
+    def closed(self) -> bool:
+        return self._client is None
+
+    @property
+    def _p(self) -> BulletClient:
+        if self._client is None:
+            raise EnvClosedError("this simulator was closed; create a new environment (or Sim) to continue")
+        return self._client
+
+    def close(self) -> None:
+        """Disconnect from the physics server; calling it again is harmless."""
+        if self._client is not None:
+            try:
+                self._client.disconnect()
+            finally:
+                self._client = None
+
+    # ------------------------------------------------------------------- bodies
+    def load_urdf(
+        self,
+        name: str,
+        filename: str | Path,
+        position: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        orientation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0),
+        fixed_base: bool = False,
+        self_collision: bool = False,
+        scale: float = 1.0,
+    ) -> int:
+        """Load a URDF (a packaged name such as ``"hoap3.urdf"`` or a path) as body ``name``."""
+        if name in self._bodies:
+            raise InvalidInputError(f"a body named {name!r} already exists; names in use: {sorted(self._bodies)}")
+        path = Path(filename)
+        if not path.is_file():
+            path = urdf_path(str(filename))
+        flags = pybullet.URDF_USE_INERTIA_FROM_FILE
+        if self_collision:
+            flags |= pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
+        body = self._p.loadURDF(
+            str(path), position, orientation, useFixedBase=fixed_base, flags=flags, globalScaling=scale
+        )
+        self._bodies[name] = body
+        self._joints[name] = self._read_joints(body)
+        return body
+
+    def _read_joints(self, body: int) -> list[JointInfo]:
+        infos = []
+        for j in range(self._p.getNumJoints(body)):
+            info = self._p.getJointInfo(body, j)
+            if info[2] in (pybullet.JOINT_REVOLUTE, pybullet.JOINT_PRISMATIC):
+                infos.append(
+                    JointInfo(j, info[1].decode(), info[12].decode(), info[8], info[9], info[10], info[11])
+                )
+        return infos
+
+    def body_id(self, name: str) -> int:
+        try:
+            return self._bodies[name]
+        except KeyError:
+            raise InvalidInputError(f"no body named {name!r}; bodies: {sorted(self._bodies)}") from None
+
+    @property
+    def body_names(self) -> list[str]:
+        return list(self._bodies)
+
+    def joints(self, name: str) -> list[JointInfo]:
+        """The movable joints of body ``name``, in model order."""
+        self.body_id(name)
+        return self._joints[name]
+
+    def link_index(self, name: str, link_name: str) -> int:
+        """Index of link ``link_name`` of body ``name`` (-1 is the base)."""
+        body = self.body_id(name)
+        if self._p.getBodyInfo(body)[0].decode() == link_name:
+            return -1
+        for j in range(self._p.getNumJoints(body)):
+            if self._p.getJointInfo(body, j)[12].decode() == link_name:
+                return j
+        raise InvalidInputError(f"body {name!r} has no link named {link_name!r}")
+
+    # -------------------------------------------------------------------- state
+    def base_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (3,) and quaternion (x, y, z, w) of the body's base (its centre-of-mass frame)."""
+        pos, quat = self._p.getBasePositionAndOrientation(self.body_id(name))
+        return np.array(pos), np.array(quat)
+
+    def base_velocity(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        lin, ang = self._p.getBaseVelocity(self.body_id(name))
+        return np.array(lin), np.array(ang)
+
+    def set_base_pose(
+        self, name: str, position: np.ndarray, orientation: np.ndarray = (0.0, 0.0, 0.0, 1.0)
+    ) -> None:
+        """Teleport a body's base (quaternion x, y, z, w) and zero its velocity."""
+        body = self.body_id(name)
+        self._p.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, orientation)))
+        self._p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+
+    def link_poses(self, name: str, links: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """URDF-frame positions (L, 3) and quaternions (L, 4) of links (``-1`` = base frame)."""
+        body = self.body_id(name)
+        positions, quats = np.empty((len(links), 3)), np.empty((len(links), 4))
+        for row, link in enumerate(links):
+            if link == -1:
+                pos, quat = self._p.getBasePositionAndOrientation(body)
+                # the base's URDF frame differs from its centre-of-mass frame by the inertial offset
+                inv_pos, inv_quat = self._p.invertTransform(*self._p.getDynamicsInfo(body, -1)[3:5])
+                pos, quat = self._p.multiplyTransforms(pos, quat, inv_pos, inv_quat)
+            else:
+                state = self._p.getLinkState(body, link, computeForwardKinematics=True)
+                pos, quat = state[4], state[5]
+            positions[row], quats[row] = pos, quat
+        return positions, quats
+
+    def joint_states(self, name: str, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and velocities of the given joints."""
+        states = self._p.getJointStates(self.body_id(name), indices)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def reset_joints(self, name: str, indices: list[int], positions: np.ndarray) -> None:
+        """Set joint positions instantly (zero velocity), e.g. to pose a robot before the first step."""
+        body = self.body_id(name)
+        for j, q in zip(indices, positions):
+            self._p.resetJointState(body, j, float(q), 0.0)
+
+    def set_joint_targets(
+        self,
+        name: str,
+        indices: list[int],
+        positions: np.ndarray,
+        forces: np.ndarray,
+        max_velocities: np.ndarray,
+        position_gain: float = 0.3,
+        velocity_gain: float = 1.0,
+    ) -> None:
+        """Position control with realistic torque limits (N m) and joint speed limits (rad/s).
+
+        URDF velocity limits are ignored by PyBullet unless passed here as ``maxVelocity``.
+        """
+        body = self.body_id(name)
+        for j, q, f, v in zip(indices, positions, forces, max_velocities):
+            self._p.setJointMotorControl2(
+                body,
+                j,
+                pybullet.POSITION_CONTROL,
+                targetPosition=float(q),
+                force=float(f),
+                maxVelocity=float(v),
+                positionGain=position_gain,
+                velocityGain=velocity_gain,
+            )
+
+    def set_dynamics(self, name: str, link: int = -1, **kwargs: float) -> None:
+        """Change contact/dynamics properties (``lateralFriction``, ``mass``, ...) of one link."""
+        self._p.changeDynamics(self.body_id(name), link, **kwargs)
+
+    def set_color(self, name: str, rgba: tuple[float, float, float, float], link: int = -1) -> None:
+        self._p.changeVisualShape(self.body_id(name), link, rgbaColor=list(rgba))
+
+    def mass_properties(self, name: str) -> tuple[float, np.ndarray]:
+        """Total mass (kg) and world centre of mass (3,) of a body."""
+        body = self.body_id(name)
+        masses = [self._p.getDynamicsInfo(body, -1)[0]]
+        coms = [self._p.getBasePositionAndOrientation(body)[0]]
+        for j in range(self._p.getNumJoints(body)):
+            masses.append(self._p.getDynamicsInfo(body, j)[0])
+            coms.append(self._p.getLinkState(body, j, computeForwardKinematics=True)[0])
+        m = np.array(masses)
+        return float(m.sum()), (m[:, None] * np.array(coms)).sum(axis=0) / m.sum()
+
+    def aabb(self, name: str, link: int = -1) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = self._p.getAABB(self.body_id(name), link)
+        return np.array(lo), np.array(hi)
+
+    def contacts(self, name_a: str, name_b: str | None = None, link_a: int | None = None) -> list[dict]:
+        """Contact points of body ``name_a`` (optionally with ``name_b``, optionally one link of a)."""
+        kwargs = {"bodyA": self.body_id(name_a)}
+        if name_b is not None:
+            kwargs["bodyB"] = self.body_id(name_b)
+        if link_a is not None:
+            kwargs["linkIndexA"] = link_a
+        return [
+            {"link_a": c[3], "link_b": c[4], "position": np.array(c[5]), "normal_force": c[9]}
+            for c in self._p.getContactPoints(**kwargs)
+        ]
+
+    # ----------------------------------------------------------------- stepping
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self._p.stepSimulation()
+
+    def save_state(self) -> int:
+        """Snapshot the whole world in memory; :meth:`restore_state` returns to it exactly."""
+        return self._p.saveState()
+
+    def restore_state(self, state_id: int) -> None:
+        self._p.restoreState(stateId=state_id)
+
+    # ------------------------------------------------------------------ cameras
+    def render(self, camera: Camera | str) -> CameraImage:
+        """Render a camera (a :class:`Camera` or the name of one in :attr:`cameras`)."""
+        if isinstance(camera, str):
+            try:
+                camera = self.cameras[camera]
+            except KeyError:
+                raise InvalidInputError(f"no camera named {camera!r}; cameras: {sorted(self.cameras)}") from None
+        renderer = pybullet.ER_BULLET_HARDWARE_OPENGL if self.gui else pybullet.ER_TINY_RENDERER
+        width, height, rgba, depth_buffer, seg = self._p.getCameraImage(
+            camera.width,
+            camera.height,
+            viewMatrix=camera.view_matrix().T.ravel().tolist(),
+            projectionMatrix=camera.projection_matrix().T.ravel().tolist(),
+            renderer=renderer,
+            shadow=int(self.shadows),
+        )
+        rgba = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)
+        zbuf = np.asarray(depth_buffer, dtype=np.float64).reshape(height, width)
+        n, f = camera.near, camera.far
+        depth = (f * n / (f - (f - n) * zbuf)).astype(np.float32)
+        seg = np.asarray(seg, dtype=np.int32).reshape(height, width)  # body id per pixel, -1 = background
+        return CameraImage(rgb=np.ascontiguousarray(rgba[..., :3]), depth=depth, segmentation=seg)

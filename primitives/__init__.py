@@ -1,0 +1,1 @@
+"""Learning and recognising action primitives: HMM maths, discovery, grammar, parametric HMMs, tracking."""
