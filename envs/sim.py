@@ -147,8 +147,13 @@ class Sim:
         fixed_base: bool = False,
         self_collision: bool = False,
         scale: float = 1.0,
+        implicit_cylinders: bool = False,
     ) -> int:
-        """Load a URDF (a packaged name such as ``"hoap3.urdf"`` or a path) as body ``name``."""
+        """Load a URDF (a packaged name such as ``"hoap3.urdf"`` or a path) as body ``name``.
+
+        ``implicit_cylinders=True`` collides URDF cylinders as exact cylinders; by default PyBullet
+        uses a convex hull that its 1 mm collision margin inflates (a 15 mm peg acts 17 mm wide).
+        """
         if name in self._bodies:
             raise InvalidInputError(f"a body named {name!r} already exists; names in use: {sorted(self._bodies)}")
         path = Path(filename)
@@ -157,11 +162,27 @@ class Sim:
         flags = pybullet.URDF_USE_INERTIA_FROM_FILE
         if self_collision:
             flags |= pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
+        if implicit_cylinders:
+            flags |= pybullet.URDF_USE_IMPLICIT_CYLINDER
         body = self._p.loadURDF(
             str(path), position, orientation, useFixedBase=fixed_base, flags=flags, globalScaling=scale
         )
         self._bodies[name] = body
         self._joints[name] = self._read_joints(body)
+        return body
+
+    def add_ground_plane(self, name: str = "ground", z: float = 0.0, lateral_friction: float = 1.0) -> int:
+        """Add a static infinite plane ``z = const`` (collision only, invisible) as body ``name``.
+
+        A floor for tests and bare setups that need no table scene.
+        """
+        if name in self._bodies:
+            raise InvalidInputError(f"a body named {name!r} already exists; names in use: {sorted(self._bodies)}")
+        shape = self._p.createCollisionShape(pybullet.GEOM_PLANE)
+        body = self._p.createMultiBody(0.0, shape, -1, [0.0, 0.0, float(z)])
+        self._p.changeDynamics(body, -1, lateralFriction=float(lateral_friction))
+        self._bodies[name] = body
+        self._joints[name] = []
         return body
 
     def _read_joints(self, body: int) -> list[JointInfo]:
@@ -305,6 +326,60 @@ class Sim:
             for c in self._p.getContactPoints(**kwargs)
         ]
 
+    def ray_cast(self, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, list[str | None]]:
+        """First hits of the rays ``starts[k] -> ends[k]`` (N, 3): hit points (N, 3), NaN where a ray
+        hits nothing, and the hit body's name (None for none). Exact on faces, but a ray passing within
+        ~1.5 mm of a tilted box's vertex can report a hit up to ~1.4 mm off (Bullet's GJK cast)."""
+        results = self._p.rayTestBatch(np.asarray(starts, float).tolist(), np.asarray(ends, float).tolist())
+        names = {body: name for name, body in self._bodies.items()}
+        points = np.full((len(results), 3), np.nan)
+        for row, hit in enumerate(results):
+            if hit[0] >= 0:
+                points[row] = hit[3]
+        return points, [names.get(hit[0]) for hit in results]
+
+    # ------------------------------------- grasp constraints and proximity (demonstrator, envs/demonstrator.py)
+    def closest_distance(
+        self, name_a: str, name_b: str, link_a: int | None = None, max_distance: float = 0.05
+    ) -> float:
+        """Smallest signed distance (m, negative = penetration) between body ``name_a`` (optionally one
+        of its links) and body ``name_b``; ``inf`` when they are farther apart than ``max_distance``.
+
+        Computed from the current poses (no step needed), e.g. to see whether fingers touch an object.
+        """
+        kwargs = {"bodyA": self.body_id(name_a), "bodyB": self.body_id(name_b), "distance": float(max_distance)}
+        if link_a is not None:
+            kwargs["linkIndexA"] = link_a
+        points = self._p.getClosestPoints(**kwargs)
+        return min((c[8] for c in points), default=float("inf"))
+
+    def attach(self, parent: str, parent_link: int, child: str, max_force: float = 50.0) -> int:
+        """Hold body ``child`` rigidly at its current pose relative to link ``parent_link`` of ``parent``.
+
+        A fixed constraint (e.g. a grasp once the fingers have closed on an object); returns its id
+        for :meth:`detach`. Constraint frames are centre-of-mass frames, as PyBullet defines them;
+        ``max_force`` (N) bounds the force the constraint may apply.
+        """
+        parent_id, child_id = self.body_id(parent), self.body_id(child)
+        if parent_link == -1:
+            parent_pos, parent_quat = self._p.getBasePositionAndOrientation(parent_id)
+        else:
+            parent_pos, parent_quat = self._p.getLinkState(parent_id, parent_link, computeForwardKinematics=True)[:2]
+        child_pos, child_quat = self._p.getBasePositionAndOrientation(child_id)
+        inv_pos, inv_quat = self._p.invertTransform(parent_pos, parent_quat)
+        rel_pos, rel_quat = self._p.multiplyTransforms(inv_pos, inv_quat, child_pos, child_quat)
+        constraint = self._p.createConstraint(
+            parent_id, parent_link, child_id, -1, pybullet.JOINT_FIXED, [0.0, 0.0, 0.0],
+            parentFramePosition=rel_pos, childFramePosition=[0.0, 0.0, 0.0],
+            parentFrameOrientation=rel_quat, childFrameOrientation=[0.0, 0.0, 0.0, 1.0],
+        )
+        self._p.changeConstraint(constraint, maxForce=float(max_force))
+        return constraint
+
+    def detach(self, constraint_id: int) -> None:
+        """Remove a constraint made by :meth:`attach`."""
+        self._p.removeConstraint(constraint_id)
+
     # ----------------------------------------------------------------- stepping
     def step(self, n: int = 1) -> None:
         for _ in range(n):
@@ -315,6 +390,17 @@ class Sim:
         return self._p.saveState()
 
     def restore_state(self, state_id: int) -> None:
+        """Return to a :meth:`save_state` snapshot, bit for bit whatever happened since.
+
+        PyBullet restores poses and velocities but keeps the contact manifolds (warm-starting
+        caches) of the moment, so the next steps would depend on history. Parking every body far
+        apart and running collision detection drops all pairs; the second restore then starts from
+        the same empty cache every time.
+        """
+        self._p.restoreState(stateId=state_id)
+        for k, body in enumerate(self._bodies.values()):
+            self._p.resetBasePositionAndOrientation(body, [100.0 + 10.0 * k, 100.0, 100.0], [0.0, 0.0, 0.0, 1.0])
+        self._p.performCollisionDetection()
         self._p.restoreState(stateId=state_id)
 
     # ------------------------------------------------------------------ cameras
