@@ -1,0 +1,227 @@
+"""The HOAP-3-style humanoid (``urdf/hoap3.urdf``) inside a :class:`~hoap_actions.envs.sim.Sim`.
+
+:class:`Robot` loads the model free-floating, stands it on the floor, and drives its 28 joints by
+position control with the HOAP-3 torque limits. Joint vectors are ``(28,)`` float arrays in
+:attr:`Robot.joint_names` order (radians); quaternions are ``(x, y, z, w)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import ConvexHull
+from scipy.spatial.transform import Rotation
+
+from hoap_actions.envs import world
+from hoap_actions.envs.sim import Sim
+from hoap_actions.errors import InvalidInputError
+
+URDF_NAME = "hoap3.urdf"
+SIDES = ("right", "left")
+ARM_JOINTS = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_yaw", "gripper")
+FRAMES = ("r_tcp", "l_tcp", "r_sole", "l_sole", "camera")
+SOLE_HALF = (0.054, 0.0365)  # m, half length and half width of a 108 x 73 mm sole
+
+GRIPPER_OPEN = 0.0  # rad: 36 mm between thumb and palm at the tcp
+GRIPPER_CLOSED = np.radians(60.0)  # rad, the joint's upper limit: the thumb tip reaches the palm
+"""Positive gripper angles close either hand; a 15 mm peg is met at 45 deg, so commanding
+``GRIPPER_CLOSED`` on a peg squeezes it with the full 0.36 N m (about 9.5 N at the tcp)."""
+
+FALL_HEIGHT = 0.20  # m, pelvis (waist axis) above the floor below which the robot has fallen (0.30 standing)
+FALL_TILT = 0.6  # rad, pelvis tilt from vertical beyond which the robot has fallen
+
+# Standing, knees bent 0.4 rad (hips stay above the ankles, soles flat, pelvis upright); upper arms
+# 15 deg forward of hanging, forearms horizontal about 6 cm above the table top, hands open.
+HOME = {
+    "hip_pitch": -0.2,
+    "knee": 0.4,
+    "ankle_pitch": -0.2,
+    "shoulder_pitch": np.radians(75.0),
+    "elbow": np.radians(-75.0),
+    "gripper": GRIPPER_OPEN,
+}
+
+
+class Robot:
+    """The humanoid as body ``name`` of ``sim``, standing with its ankles' midpoint at ``feet_xy``.
+
+    The base floats free (nothing welds it). Friction (1.0, with anchors against creep) on the soles,
+    palms and thumbs comes from the URDF. Self-collision is off: the home posture and table-top reaches
+    keep the limbs apart, and whole-body IK (placo) can avoid self-contact where it matters.
+
+    Args:
+        sim: the simulator that owns the body.
+        name: body name in ``sim``.
+        feet_xy: (x, y) of the midpoint between the ankles on the floor (m).
+        yaw: heading about +z (rad); 0 faces +x.
+        floor_z: height of the floor plane (m); the floor body itself belongs to the scene.
+        position_gain, velocity_gain: PyBullet position-control gains, in [0, 1].
+    """
+
+    def __init__(
+        self,
+        sim: Sim,
+        name: str = "robot",
+        feet_xy: tuple[float, float] = world.ROBOT_FEET_XY,
+        yaw: float = 0.0,
+        floor_z: float = world.FLOOR_Z,
+        position_gain: float = 0.3,
+        velocity_gain: float = 1.0,
+    ) -> None:
+        for label, gain in (("position_gain", position_gain), ("velocity_gain", velocity_gain)):
+            if not 0.0 <= gain <= 1.0:
+                raise InvalidInputError(f"{label}={gain} is outside [0, 1], the range of PyBullet's position gains")
+        self.sim, self.name = sim, name
+        self.feet_xy = (float(feet_xy[0]), float(feet_xy[1]))
+        self.yaw, self.floor_z = float(yaw), float(floor_z)
+        self.position_gain, self.velocity_gain = float(position_gain), float(velocity_gain)
+        sim.load_urdf(name, URDF_NAME)
+        joints = sim.joints(name)
+        self._indices = [j.index for j in joints]
+        self.joint_names: tuple[str, ...] = tuple(j.name for j in joints)
+        self.lower = np.array([j.lower for j in joints])
+        self.upper = np.array([j.upper for j in joints])
+        self.max_velocity = np.array([j.max_velocity for j in joints])
+        self.max_force = np.array([j.max_force for j in joints])
+        for array in (self.lower, self.upper, self.max_velocity, self.max_force):
+            array.flags.writeable = False
+        self._position = {n: i for i, n in enumerate(self.joint_names)}
+        self._links = {f: sim.link_index(name, f) for f in FRAMES}
+        self._feet = [sim.link_index(name, f"{p}_foot") for p in "rl"]
+        self._soles = [self._links["r_sole"], self._links["l_sole"]]
+        home = np.zeros(len(joints))
+        for n, value in HOME.items():
+            home[[self._position[f"{p}_{n}"] for p in "rl"]] = value
+        home.flags.writeable = False
+        self.home_posture = home
+        self._targets = home.copy()
+        self._sole_corners = np.array([[x * SOLE_HALF[0], y * SOLE_HALF[1], 0.0] for x in (1, -1) for y in (1, -1)])
+        self.reset()
+
+    # ------------------------------------------------------------------ structure
+    def arm_joints(self, side: str) -> tuple[int, ...]:
+        """Positions in the joint vector of one arm's 6 joints, shoulder pitch to gripper."""
+        p = self._side(side)
+        return tuple(self._position[f"{p}_{n}"] for n in ARM_JOINTS)
+
+    def joint_index(self, joint_name: str) -> int:
+        """Position of ``joint_name`` in the joint vector."""
+        try:
+            return self._position[joint_name]
+        except KeyError:
+            raise InvalidInputError(f"no joint named {joint_name!r}; joints: {list(self.joint_names)}") from None
+
+    @property
+    def targets(self) -> np.ndarray:
+        """The joint targets last commanded (28,), after clipping to the joint ranges."""
+        return self._targets.copy()
+
+    # ------------------------------------------------------------------ commands
+    def reset(self, q: np.ndarray | None = None) -> None:
+        """Pose the joints at ``q`` (default :attr:`home_posture`), at rest, soles on the floor.
+
+        The base is turned so that the mean sole orientation is level at heading :attr:`yaw`, moved
+        so the ankles' midpoint is over :attr:`feet_xy` and the lowest sole corner touches the
+        floor; the motors then hold ``q``. Out-of-range values are clipped as in :meth:`set_targets`.
+        """
+        q = self.home_posture if q is None else self._checked(q, "q")
+        self.sim.reset_joints(self.name, self._indices, q)
+        self.sim.set_base_pose(self.name, np.zeros(3))  # base (centre-of-mass) frame at the origin
+        positions, quats = self.sim.link_poses(self.name, self._soles + self._feet)
+        base_rot = Rotation.from_euler("z", self.yaw) * Rotation.from_quat(quats[:2]).mean().inv()
+        lowest = base_rot.apply(self._corners(positions[:2], quats[:2]))[:, 2].min()
+        ankles = base_rot.apply(positions[2:].mean(axis=0))
+        offset = np.array([self.feet_xy[0] - ankles[0], self.feet_xy[1] - ankles[1], self.floor_z - lowest])
+        self.sim.set_base_pose(self.name, offset, base_rot.as_quat())
+        self.set_targets(q)
+
+    def set_targets(self, q: np.ndarray) -> None:
+        """Position targets for all 28 joints, driven with the HOAP-3 peak torques and 5 rad/s.
+
+        Raises :class:`InvalidInputError` for a wrong shape or NaN/inf. Targets beyond a joint's
+        range are clipped to it, as a servo's own limits would (MuJoCo's ``ctrlrange`` behaves the
+        same); :attr:`targets` shows what was sent.
+        """
+        self._targets = self._checked(q, "q")
+        self.sim.set_joint_targets(
+            self.name, self._indices, self._targets, self.max_force, self.max_velocity,
+            self.position_gain, self.velocity_gain,
+        )
+
+    def set_gripper(self, side: str, closure: float) -> None:
+        """Open (0) or close (1) one hand; 1 squeezes a held peg with the full servo torque.
+
+        ``closure`` maps linearly from :data:`GRIPPER_OPEN` to :data:`GRIPPER_CLOSED` and is clipped
+        to [0, 1]; the other joints keep their targets.
+        """
+        closure = float(closure)
+        if not np.isfinite(closure):
+            raise InvalidInputError(f"closure={closure} must be a finite number in [0, 1] (0 open, 1 closed)")
+        k = self._position[f"{self._side(side)}_gripper"]
+        self._targets[k] = GRIPPER_OPEN + min(max(closure, 0.0), 1.0) * (GRIPPER_CLOSED - GRIPPER_OPEN)
+        self.sim.set_joint_targets(
+            self.name, [self._indices[k]], self._targets[k : k + 1], self.max_force[k : k + 1],
+            self.max_velocity[k : k + 1], self.position_gain, self.velocity_gain,
+        )
+
+    # ------------------------------------------------------------------ state
+    def joint_positions(self) -> np.ndarray:
+        """Joint angles (28,), rad."""
+        return self.sim.joint_states(self.name, self._indices)[0]
+
+    def joint_velocities(self) -> np.ndarray:
+        """Joint speeds (28,), rad/s."""
+        return self.sim.joint_states(self.name, self._indices)[1]
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """World position (3,) and quaternion (x, y, z, w) of the pelvis frame (on the waist-pitch axis)."""
+        positions, quats = self.sim.link_poses(self.name, [-1])
+        return positions[0], quats[0]
+
+    def frame_pose(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position (3,) and quaternion (x, y, z, w) of a link frame such as ``"r_tcp"``.
+
+        Named frames: ``r_tcp``/``l_tcp`` (grasp point: x along the forearm, z along a held peg's
+        axis), ``r_sole``/``l_sole`` (sole centre), ``camera`` (between the eyes, looking along +x);
+        any other link name of the URDF works too.
+        """
+        if frame not in self._links:
+            self._links[frame] = self.sim.link_index(self.name, frame)
+        positions, quats = self.sim.link_poses(self.name, [self._links[frame]])
+        return positions[0], quats[0]
+
+    def com(self) -> np.ndarray:
+        """World centre of mass (3,), m."""
+        return self.sim.mass_properties(self.name)[1]
+
+    def support_polygon(self) -> np.ndarray:
+        """Convex hull of both soles' corners on the floor, ``(K, 2)`` xy in clockwise order."""
+        xy = self._corners(*self.sim.link_poses(self.name, self._soles))[:, :2]
+        return xy[ConvexHull(xy).vertices[::-1]]  # scipy lists 2-D hulls counter-clockwise
+
+    def has_fallen(self) -> bool:
+        """True once the pelvis is lower than :data:`FALL_HEIGHT` above the floor or tilted past :data:`FALL_TILT`."""
+        position, quat = self.base_pose()
+        up = Rotation.from_quat(quat).apply([0.0, 0.0, 1.0])
+        return bool(position[2] - self.floor_z < FALL_HEIGHT or up[2] < np.cos(FALL_TILT))
+
+    # ------------------------------------------------------------------ helpers
+    def _corners(self, positions: np.ndarray, quats: np.ndarray) -> np.ndarray:
+        """The 8 sole corners (8, 3) from the two sole frames' positions and quaternions."""
+        return np.concatenate([p + Rotation.from_quat(q).apply(self._sole_corners) for p, q in zip(positions, quats)])
+
+    def _checked(self, q: np.ndarray, label: str) -> np.ndarray:
+        array = np.asarray(q, dtype=np.float64)
+        if array.shape != self.lower.shape:
+            raise InvalidInputError(
+                f"{label} has shape {array.shape}; expected {self.lower.shape}: one angle per joint, joint_names order"
+            )
+        if not np.all(np.isfinite(array)):
+            bad = [self.joint_names[i] for i in np.flatnonzero(~np.isfinite(array))]
+            raise InvalidInputError(f"{label} has NaN or inf for {bad}; expected finite angles (rad)")
+        return np.clip(array, self.lower, self.upper)
+
+    @staticmethod
+    def _side(side: str) -> str:
+        if side not in SIDES:
+            raise InvalidInputError(f"side={side!r} is not accepted; use 'right' or 'left'")
+        return side[0]
