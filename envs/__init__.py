@@ -1,14 +1,23 @@
-"""The simulated world (PyBullet) and its Gymnasium environments."""
+"""The simulated world (PyBullet) and its Gymnasium environments.
+
+Ids are namespaced ``hoap_actions/<Task>-v0`` and registered by :func:`register_envs`, which
+``import hoap_actions`` calls.
+"""
 
 from __future__ import annotations
 
 import gymnasium
 
-ENV_IDS: tuple[str, ...] = ()
+# id -> (entry point, max_episode_steps at 30 Hz)
+_SPECS: dict[str, tuple[str, int]] = {
+    "hoap_actions/PegInsert-v0": ("hoap_actions.envs.tasks.peg_insert:PegInsertEnv", 600),
+    "hoap_actions/Reach-v0": ("hoap_actions.envs.tasks.reach:ReachEnv", 150),
+}
+ENV_IDS: tuple[str, ...] = tuple(_SPECS)
 
 
 def register_envs() -> None:
     """Register every hoap_actions environment id with Gymnasium (idempotent)."""
-    for env_id in ENV_IDS:
+    for env_id, (entry_point, max_steps) in _SPECS.items():
         if env_id not in gymnasium.registry:
-            pass
+            gymnasium.register(id=env_id, entry_point=entry_point, max_episode_steps=max_steps)

@@ -1,0 +1,35 @@
+"""Policies usable in any ``env.step`` loop, looked up by name for the CLI."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+
+class RandomPolicy:
+    """Uniform random actions from the env's action space (a baseline and a smoke test)."""
+
+    failure: str | None = None
+
+    def __init__(self, env: gymnasium.Env, seed: int = 0) -> None:
+        self.action_space = env.action_space
+        self.action_space.seed(seed)
+
+    def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        """Nothing to reset: the action stream continues across episodes, seeded once."""
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return self.action_space.sample()
+
+
+POLICIES = {"random": RandomPolicy}
+
+
+def make_policy(name: str, env: gymnasium.Env):
+    """The policy called ``name`` (one of :data:`POLICIES`) for ``env``."""
+    try:
+        return POLICIES[name](env)
+    except KeyError:
+        raise ValueError(f"unknown policy {name!r}; accepted: {sorted(POLICIES)}") from None

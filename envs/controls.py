@@ -1,0 +1,104 @@
+"""Action interpretations (``control_mode``): how a bounded action becomes joint targets for the robot."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from hoap_actions.controllers.hand_control import HandController
+from hoap_actions.envs import world
+from hoap_actions.envs.robot import Robot
+
+MAX_JOINT_DELTA = 0.05  # rad per action (30 Hz): 1.5 rad/s at full command, under the 5 rad/s servo limit
+JOINT_DELTA_JOINTS = (
+    "waist_pitch",
+    "r_shoulder_pitch",
+    "r_shoulder_roll",
+    "r_shoulder_yaw",
+    "r_elbow",
+    "r_wrist_yaw",
+    "r_gripper",
+)
+
+
+class JointDeltaController:
+    """``"joint_delta"``: action in [-1, 1]^7 moves the waist and right-arm joint targets by up to 0.05 rad.
+
+    Order: waist pitch, right shoulder pitch / roll / yaw, elbow, hand torsion, gripper. The legs,
+    head and left arm hold their home posture. A target beyond a joint's range is held at the range
+    limit, as a servo would, and ``last_clipped`` (reported as ``info["target_clipped"]``) says so.
+    """
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        names = list(robot.joint_names)
+        self._indices = np.array([names.index(n) for n in JOINT_DELTA_JOINTS])
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(len(JOINT_DELTA_JOINTS),), dtype=np.float32)
+        self.last_clipped = False
+        self._target = np.array(robot.home_posture, dtype=float)
+
+    def reset(self) -> None:
+        """Controlled joints start where they are; the others hold the home posture."""
+        self._target = np.array(self.robot.home_posture, dtype=float)
+        self._target[self._indices] = self.robot.joint_positions()[self._indices]
+        self.last_clipped = False
+
+    def apply(self, action: np.ndarray) -> None:
+        wanted = self._target[self._indices] + MAX_JOINT_DELTA * action
+        low, high = self.robot.lower[self._indices], self.robot.upper[self._indices]
+        clipped = np.clip(wanted, low, high)
+        self.last_clipped = bool(np.any(clipped != wanted))
+        self._target[self._indices] = clipped
+        self.robot.set_targets(self._target)
+
+
+MAX_HAND_STEP = 0.008  # m per action and axis (30 Hz): 0.24 m/s, within the hand reference's 0.25 m/s
+HAND_BOX_LOW = np.array([world.WORK_AREA_LOW[0] - 0.04, world.WORK_AREA_LOW[1] - 0.05, 0.015])
+HAND_BOX_HIGH = np.array([world.WORK_AREA_HIGH[0] + 0.04, world.WORK_AREA_HIGH[1] + 0.05, 0.16])
+"""World box (m) the desired hand position is held in: the work area with room for the holes at its
+edges, from just above the table (1.5 cm: the palm reaches 2 cm below the tcp) to 16 cm above it."""
+
+
+class EEDeltaController:
+    """``"ee_delta"``: action in [-1, 1]^4 moves the desired right-hand (tcp) position and works the gripper.
+
+    ``action[:3]`` adds up to :data:`MAX_HAND_STEP` (8 mm) per axis to the desired world position,
+    held inside :data:`HAND_BOX_LOW`..:data:`HAND_BOX_HIGH` (``last_clipped`` says when it was held).
+    ``action[3] > 0`` closes the gripper fully (squeezing a peg with the servo's full torque),
+    ``<= 0`` opens it. Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the
+    desired position under velocity / acceleration / jerk limits and the whole-body IK turns it into
+    joint targets for all 28 joints, feet planted, centre of mass inside the support polygon.
+    ``hand`` exposes the IK status (``hand.last``) and whether the target proved unreachable.
+    """
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.hand = HandController(robot)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self.last_clipped = False
+        self.desired = np.zeros(3)
+
+    def reset(self) -> None:
+        """Hold the hand where it is; the gripper keeps its current target."""
+        self.hand.reset()
+        self.desired = self.hand.reference.copy()
+        self.last_clipped = False
+
+    def apply(self, action: np.ndarray) -> None:
+        wanted = self.desired + MAX_HAND_STEP * np.asarray(action[:3], dtype=float)
+        self.desired = np.clip(wanted, HAND_BOX_LOW, HAND_BOX_HIGH)
+        self.last_clipped = bool(np.any(self.desired != wanted))
+        self.hand.set_target(self.desired)
+        self.robot.set_gripper("right", 1.0 if action[3] > 0.0 else 0.0)
+
+    def tick(self) -> None:
+        """One physics period: retimer step, IK step, joint targets."""
+        self.hand.tick()
+
+
+CONTROL_MODES = {"joint_delta": JointDeltaController, "ee_delta": EEDeltaController}
+
+
+def make_controller(control_mode: str, robot: Robot) -> JointDeltaController | EEDeltaController:
+    """The controller for ``control_mode`` (one of :data:`CONTROL_MODES`)."""
+    return CONTROL_MODES[control_mode](robot)

@@ -1,0 +1,176 @@
+"""``HoapEnv``: the one Gymnasium class joining a :class:`Sim`, the robot, the scene and a task.
+
+Each concrete environment is this class plus a :class:`~hoap_actions.envs.tasks.base.Task`. Resets
+restore a PyBullet snapshot taken once after loading (never reload), so the same seed gives the
+same episode bit for bit.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+from dataclasses import replace
+from typing import Any, ClassVar
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from hoap_actions.envs.controls import CONTROL_MODES, make_controller
+from hoap_actions.envs.robot import Robot
+from hoap_actions.envs.scene import Scene
+from hoap_actions.envs.sim import Sim
+from hoap_actions.envs.tasks.base import Task
+from hoap_actions.errors import EnvClosedError, InvalidInputError
+
+logger = logging.getLogger(__name__)
+
+PHYSICS_STEPS_PER_ACTION = 8  # 240 Hz physics, 30 Hz actions
+SETTLE_STEPS = 24  # physics steps after placing a layout, so objects rest before the first observation
+
+
+class HoapEnv(gymnasium.Env):
+    """A HOAP-3-style humanoid at a table with pegs and a hole board.
+
+    Observation (a ``Dict``, float32, SI units):
+      - ``"observation"``: robot joint positions (28, rad), joint velocities (28, rad/s), base
+        position (3, m) and quaternion (4, x y z w), right-hand tcp position (3, m), then the task's
+        own part (see the task's docstring).
+      - ``"achieved_goal"`` / ``"desired_goal"``: the task's goal vectors (m), as in goal-based envs.
+
+    ``info["is_success"]`` is set on reset and on every step. The episode terminates on success or
+    when the robot falls; the time limit is applied by Gymnasium's ``TimeLimit`` on registration.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": int(round(240 / PHYSICS_STEPS_PER_ACTION))}
+    task_cls: ClassVar[type[Task]]
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        control_mode: str = "joint_delta",
+        camera: str = "front",
+        render_width: int = 320,
+        render_height: int = 240,
+        reward_type: str = "sparse",
+        **task_kwargs: Any,
+    ) -> None:
+        self._check_keywords(task_kwargs)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise InvalidInputError(
+                f"render_mode={render_mode!r} is not supported; accepted: None, {self.metadata['render_modes']}"
+            )
+        if control_mode not in CONTROL_MODES:
+            raise InvalidInputError(f"control_mode={control_mode!r} is not supported; accepted: {list(CONTROL_MODES)}")
+        if reward_type not in ("sparse", "dense"):
+            raise InvalidInputError(f"reward_type={reward_type!r} is not supported; accepted: 'sparse', 'dense'")
+        self.render_mode = render_mode
+        self.control_mode = control_mode
+        self.reward_type = reward_type
+        self.sim = Sim(gui=render_mode == "human")
+        try:
+            self.robot = Robot(self.sim)
+            self.scene = Scene(self.sim)
+            if camera not in self.sim.cameras:
+                raise InvalidInputError(
+                    f"camera={camera!r} is not a camera of this scene; accepted: {sorted(self.sim.cameras)}"
+                )
+            self.camera = camera
+            self._render_camera = replace(self.sim.cameras[camera], width=int(render_width), height=int(render_height))
+            self.task = self.task_cls(self.sim, self.robot, self.scene, **task_kwargs)
+            self.controller = make_controller(control_mode, self.robot)
+            self.robot.reset()
+            self._initial_state = self.sim.save_state()
+            self.task.reset(np.random.default_rng(0))  # a first layout, only to size the observation
+            obs = self._observation()
+        except BaseException:
+            self.sim.close()
+            raise
+        self.action_space = self.controller.action_space
+        self.observation_space = spaces.Dict(
+            {key: spaces.Box(-np.inf, np.inf, shape=value.shape, dtype=np.float32) for key, value in obs.items()}
+        )
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        super().reset(seed=seed)
+        self.sim.restore_state(self._initial_state)
+        self.controller.reset()
+        self.task.reset(self.np_random)
+        self.robot.set_targets(self.robot.joint_positions())
+        self.sim.step(SETTLE_STEPS)
+        self.controller.reset()
+        return self._observation(), self._info()
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        if self.sim.closed:
+            raise EnvClosedError("step() called on a closed environment; create a new one with gymnasium.make")
+        action = self._checked_action(action)
+        self.controller.apply(action)
+        tick = getattr(self.controller, "tick", None)
+        if tick is None:
+            self.sim.step(PHYSICS_STEPS_PER_ACTION)
+        else:  # controllers with a per-tick loop (ee_delta: retiming + IK) run at the physics rate
+            for _ in range(PHYSICS_STEPS_PER_ACTION):
+                tick()
+                self.sim.step(1)
+        obs = self._observation()
+        info = self._info()
+        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
+        terminated = bool(info["is_success"] or info["fallen"])
+        return obs, reward, terminated, False, info
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: dict | None) -> np.ndarray:
+        """Vectorised reward over goal batches: sparse is 0 on success else -1; dense is minus the distance (m)."""
+        distance = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        if self.reward_type == "dense":
+            return -distance.astype(np.float32)
+        return -(~self.task.goal_reached(achieved_goal, desired_goal)).astype(np.float32)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode == "rgb_array":
+            return self.sim.render(self._render_camera).rgb
+        return None
+
+    def close(self) -> None:
+        self.sim.close()
+
+    # --------------------------------------------------------------------- internals
+    @classmethod
+    def _check_keywords(cls, task_kwargs: dict[str, Any]) -> None:
+        """Unknown keywords are a TypeError that lists every accepted one (env's and task's)."""
+        task_params = list(inspect.signature(cls.task_cls.__init__).parameters)[4:]  # after self, sim, robot, scene
+        unknown = sorted(set(task_kwargs) - set(task_params))
+        if unknown:
+            env_params = list(inspect.signature(HoapEnv.__init__).parameters)[1:-1]
+            raise TypeError(f"{cls.__name__} got unknown keyword argument(s) {unknown}; accepted: {env_params + task_params}")
+
+    def _checked_action(self, action: Any) -> np.ndarray:
+        array = np.asarray(action, dtype=np.float64)
+        expected = self.action_space.shape
+        if array.shape != expected:
+            raise InvalidInputError(
+                f"action has shape {array.shape}; this env ({self.control_mode}) expects shape {expected} in [-1, 1]"
+            )
+        if not np.all(np.isfinite(array)):
+            raise InvalidInputError(f"action contains NaN or inf: {array}; expected finite values in [-1, 1]")
+        # Gymnasium convention: a bounded Box action is clipped to its bounds.
+        return np.clip(array, self.action_space.low, self.action_space.high)
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        q, qd = self.robot.joint_positions(), self.robot.joint_velocities()
+        base_pos, base_quat = self.robot.base_pose()
+        tcp, _ = self.robot.frame_pose("r_tcp")
+        robot_part = np.concatenate([q, qd, base_pos, base_quat, tcp])
+        return {
+            "observation": np.concatenate([robot_part, self.task.observation()]).astype(np.float32),
+            "achieved_goal": self.task.achieved_goal().astype(np.float32),
+            "desired_goal": self.task.desired_goal().astype(np.float32),
+        }
+
+    def _info(self) -> dict[str, Any]:
+        return {
+            "is_success": bool(self.task.is_success()),
+            "fallen": bool(self.robot.has_fallen()),
+            "target_clipped": bool(self.controller.last_clipped),
+        }
