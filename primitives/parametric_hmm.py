@@ -1,0 +1,641 @@
+"""Parametric HMMs (Wilson & Bobick 1999) for action primitives whose shape depends on their effect phi.
+
+Each state's Gaussian mean is linear in the effect, ``mu_j(phi) = mean_bar_j + W_j phi``; covariances
+and transitions are shared by all effects.  One model is trained per primitive class from its
+demonstrations and their effects; it then synthesises a prototype movement for a desired effect
+(left-right models, as in the paper), scores a movement, estimates the effect that best explains a
+movement, and recognises which class a movement belongs to.
+
+File format of :meth:`ParametricHMM.save` (``format_version`` 1), an uncompressed ``.npz`` archive
+readable with ``numpy.load(path, allow_pickle=False)``; every entry is a plain numeric or unicode array:
+
+=======================  ===================  ===============================================================
+key                      shape                meaning
+=======================  ===================  ===============================================================
+format_version           () int               1
+kind                     () str               "ParametricHMM"
+n_states, n_iter         () int               hyper-parameters as given to ``__init__``
+topology                 () str               "left-right" or "ergodic"
+covariance_type          () str               "full" or "diag"
+tol, reg_covar           () float             hyper-parameters
+random_state             (0,) or (1,) int     the seed; empty when it was not an int (None or a Generator)
+startprob_               (K,)                 initial state distribution
+transmat_                (K, K)               transition matrix (rows sum to 1)
+mean_bar_                (K, D)               state means at phi = 0
+W_                       (K, D, p)            effect-to-mean matrices
+covars_                  (K, D, D) or (K, D)  covariances ("full") or variances ("diag")
+train_params_            (S, p)               effects of the training sequences (restarts of estimate_params)
+log_likelihood_history_  (I,)                 training log-likelihood per EM iteration
+converged_               () bool              whether training stopped on ``tol``
+=======================  ===================  ===============================================================
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import zipfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hoap_actions.errors import (
+    DataExistsError,
+    DataFileError,
+    IdentifiabilityError,
+    InvalidInputError,
+    NotFittedError,
+)
+from hoap_actions.primitives.hmm_math import (
+    forward_backward_padded,
+    log_gaussian_density_padded,
+    pad_sequences,
+    precision_cholesky,
+    second_moments,
+    unpack_second_moments,
+    validate_sequences,
+    viterbi,
+)
+
+__all__ = ["EMReport", "NStatesSelection", "ParametricHMM", "Recognition", "recognize", "select_n_states"]
+
+logger = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+_TOPOLOGIES = ("left-right", "ergodic")
+_COVARIANCE_TYPES = ("full", "diag")
+# Relative ridge on the effect block of each state's regression: only matters when a state's
+# weighted effects are degenerate (possible in ergodic models), and then picks the small-norm W.
+_RIDGE = 1e-10
+
+
+@dataclass(frozen=True)
+class EMReport:
+    """How training went: log-likelihood before each M-step, whether ``tol`` stopped it, iterations run."""
+
+    history: tuple[float, ...]
+    converged: bool
+    n_iter: int
+
+
+@dataclass(frozen=True, eq=False)
+class Recognition:
+    """Result of :func:`recognize`: the best class, its effect estimate, and every class's log-likelihood."""
+
+    label: str
+    phi: np.ndarray
+    log_likelihoods: Mapping[str, float]
+    phis: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class NStatesSelection:
+    """Result of :func:`select_n_states`: the chosen state count and the held-out log-likelihood per frame of each."""
+
+    n_states: int
+    scores: Mapping[int, float]
+
+
+@dataclass
+class _Batch:
+    """Sequences padded once: frames (S, T, D) centred on ``offset``, their second moments, effects (S, p)."""
+
+    X: np.ndarray
+    moments: np.ndarray
+    lengths: np.ndarray
+    offset: np.ndarray
+    phi: np.ndarray
+
+    @classmethod
+    def build(cls, X: np.ndarray, lengths: np.ndarray, phi: np.ndarray, offset: np.ndarray,
+              covariance_type: str) -> _Batch:
+        padded = pad_sequences(X - offset, lengths)
+        return cls(padded, second_moments(padded, covariance_type), lengths, offset, phi)
+
+
+class ParametricHMM:
+    """Gaussian HMM whose state means are linear in an effect parameter phi (linear PHMM).
+
+    Parameters
+    ----------
+    n_states:
+        Number of hidden states ``K``.
+    topology:
+        ``"left-right"``: a Bakis chain (stay or move one state right) that starts in the first state
+        and must end in the last, so every demonstration traverses the whole movement (needed by
+        :meth:`synthesize`); ``"ergodic"``: any transition, learned start distribution.
+    covariance_type:
+        ``"full"`` or ``"diag"`` state covariances.
+    n_iter, tol:
+        At most ``n_iter`` EM iterations; stop when the total training log-likelihood gains less than ``tol``.
+    reg_covar:
+        Added to every covariance diagonal, keeping covariances positive definite.
+    random_state:
+        Seed or Generator for the random restarts of :meth:`estimate_params`.
+    """
+
+    def __init__(self, n_states: int = 10, topology: str = "left-right", covariance_type: str = "full",
+                 n_iter: int = 50, tol: float = 1e-4, reg_covar: float = 1e-6,
+                 random_state: int | np.random.Generator | None = None) -> None:
+        self.n_states = n_states
+        self.topology = topology
+        self.covariance_type = covariance_type
+        self.n_iter = n_iter
+        self.tol = tol
+        self.reg_covar = reg_covar
+        self.random_state = random_state
+
+    def __repr__(self) -> str:
+        return (f"ParametricHMM(n_states={self.n_states!r}, topology={self.topology!r}, "
+                f"covariance_type={self.covariance_type!r}, n_iter={self.n_iter!r}, tol={self.tol!r}, "
+                f"reg_covar={self.reg_covar!r}, random_state={self.random_state!r})")
+
+    # ------------------------------------------------------------------------------- checks
+    def _check_hyper_parameters(self) -> None:
+        if not _is_int(self.n_states) or self.n_states < 1:
+            raise InvalidInputError(f"n_states must be a positive int; got {self.n_states!r}")
+        if self.topology not in _TOPOLOGIES:
+            raise InvalidInputError(f"topology must be one of {_TOPOLOGIES}; got {self.topology!r}")
+        if self.covariance_type not in _COVARIANCE_TYPES:
+            raise InvalidInputError(f"covariance_type must be one of {_COVARIANCE_TYPES}; got {self.covariance_type!r}")
+        if not _is_int(self.n_iter) or self.n_iter < 1:
+            raise InvalidInputError(f"n_iter must be an int >= 1; got {self.n_iter!r}")
+        if not (_is_real(self.tol) and self.tol >= 0):
+            raise InvalidInputError(f"tol must be a finite float >= 0; got {self.tol!r}")
+        if not (_is_real(self.reg_covar) and self.reg_covar >= 0):
+            raise InvalidInputError(f"reg_covar must be a finite float >= 0; got {self.reg_covar!r}")
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "W_"):
+            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(X, lengths, params) "
+                                 "or ParametricHMM.load(path) first")
+
+    @property
+    def _left_right(self) -> bool:
+        return self.topology == "left-right"
+
+    def _check_phi(self, phi) -> np.ndarray:
+        p = self.n_params_
+        try:
+            arr = np.asarray(phi, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f"phi must be a numeric array of shape ({p},); got {phi!r}") from exc
+        if arr.ndim == 0 and p == 1:
+            arr = arr.reshape(1)
+        if arr.shape != (p,):
+            raise InvalidInputError(f"phi must have shape ({p},) (this model's effect dimension p = {p}); "
+                                    f"got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInputError(f"phi must be finite; got {arr}")
+        return arr
+
+    def _check_sequence(self, X) -> np.ndarray:
+        X, _ = validate_sequences(X)
+        if X.shape[1] != self.n_features_in_:
+            raise InvalidInputError(f"X has {X.shape[1]} features per frame; this model was trained on "
+                                    f"{self.n_features_in_}")
+        if self._left_right and X.shape[0] < self.n_states:
+            raise InvalidInputError(f"the sequence has {X.shape[0]} frames, fewer than the {self.n_states} states "
+                                    "of this left-right chain, which must visit every state")
+        return X
+
+    # ---------------------------------------------------------------------------- model maths
+    def _log_end(self) -> np.ndarray | None:
+        if not self._left_right:
+            return None
+        end = np.full(self.n_states, -np.inf)
+        end[-1] = 0.0
+        return end
+
+    def _means_at(self, phi: np.ndarray, offset: np.ndarray) -> np.ndarray:
+        """State means for each effect: ``(S, K, D)`` from ``phi`` of shape ``(S, p)``, minus ``offset``."""
+        return (self.mean_bar_ - offset)[None] + np.einsum("kdp,sp->skd", self.W_, phi)
+
+    def _e_step(self, batch: _Batch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-sequence log-likelihoods, padded posteriors (S, T, K) and expected transition counts (K, K)."""
+        logb = log_gaussian_density_padded(batch.X, self._means_at(batch.phi, batch.offset), self.covars_,
+                                           self.covariance_type, batch.moments)
+        with np.errstate(divide="ignore"):
+            return forward_backward_padded(np.log(self.startprob_), np.log(self.transmat_), logb,
+                                           batch.lengths, self._log_end())
+
+    def _m_step(self, batch: _Batch, gamma: np.ndarray, xi: np.ndarray) -> None:
+        """Closed-form maximisation: per-state weighted regression of frames on [phi; 1], then covariances.
+
+        Effects are centred for conditioning (W is unchanged by it); frames are centred on ``batch.offset``.
+        """
+        k, d = self.n_states, batch.X.shape[2]
+        phi_centre = batch.phi.mean(axis=0)
+        omega = np.hstack([batch.phi - phi_centre, np.ones((batch.phi.shape[0], 1))])
+        q = omega.shape[1]
+        occ = gamma.sum(axis=1)                                        # (S, K)
+        occ_x = np.matmul(gamma.transpose(0, 2, 1), batch.X)           # (S, K, D)
+        total = occ.sum(axis=0)                                        # (K,)
+        num = np.einsum("skd,sq->kdq", occ_x, omega)                   # (K, D, q)
+        gram = np.einsum("sk,sq,sr->kqr", occ, omega, omega)           # (K, q, q)
+        visited = total > 1e-10 * max(total.max(), 1.0)
+        gram[~visited] = np.eye(q)
+        ridge = _RIDGE * np.trace(gram, axis1=1, axis2=2) / q
+        gram[:, np.arange(q - 1), np.arange(q - 1)] += ridge[:, None]
+        z = np.linalg.solve(gram, num.transpose(0, 2, 1)).transpose(0, 2, 1)  # (K, D, q) = [W | mu_bar_c]
+
+        # sum_t gamma (x - Z w)(x - Z w)^T = Sxx - N Z^T - Z N^T + Z G Z^T, per state.
+        cross = np.matmul(num, z.transpose(0, 2, 1))
+        fit = np.matmul(np.matmul(z, gram), z.transpose(0, 2, 1))
+        sxx = unpack_second_moments(gamma.reshape(-1, k).T @ batch.moments.reshape(gamma[..., 0].size, -1),
+                                    self.covariance_type)
+        if self.covariance_type == "full":
+            scatter = sxx - cross - cross.transpose(0, 2, 1) + fit
+            scatter = 0.5 * (scatter + scatter.transpose(0, 2, 1))
+        else:
+            scatter = (sxx - 2.0 * np.diagonal(cross, axis1=1, axis2=2) + np.diagonal(fit, axis1=1, axis2=2))
+        weights = np.where(visited, total, 1.0)
+        covars = scatter / weights.reshape((-1,) + (1,) * (scatter.ndim - 1))
+        if self.covariance_type == "full":
+            covars[:, np.arange(d), np.arange(d)] += self.reg_covar
+        else:
+            covars = np.maximum(covars, 0.0) + self.reg_covar
+
+        # Unvisited states (ergodic models only) keep their parameters.
+        self.W_ = np.where(visited[:, None, None], z[:, :, :-1], getattr(self, "W_", z[:, :, :-1]))
+        mean_c = z[:, :, -1] + batch.offset - z[:, :, :-1] @ phi_centre
+        self.mean_bar_ = np.where(visited[:, None], mean_c, getattr(self, "mean_bar_", mean_c))
+        self.covars_ = np.where(visited.reshape((-1,) + (1,) * (covars.ndim - 1)), covars,
+                                getattr(self, "covars_", covars))
+        # A state never left (or never reached) keeps its old row, or at the start a self-loop.
+        rows = xi.sum(axis=1, keepdims=True)
+        keep = getattr(self, "transmat_", np.eye(k))
+        self.transmat_ = np.where(rows > 0, xi / np.where(rows > 0, rows, 1.0), keep)
+        if not self._left_right:
+            start = gamma[:, 0].sum(axis=0)
+            self.startprob_ = start / start.sum()
+
+    # ------------------------------------------------------------------------------------- fit
+    def fit(self, X, lengths, params) -> ParametricHMM:
+        """Train by extended Baum-Welch on sequences ``X`` (N, D) with ``lengths`` and effects ``params`` (S, p).
+
+        The training effects must affinely span R^p (at least p + 1 of them, not all on one
+        hyperplane) or W is not identifiable.  Left-right models start from each sequence cut into
+        K equal parts; ergodic models from the same cut with smoothed transitions.
+        """
+        self._check_hyper_parameters()
+        X, lengths = validate_sequences(X, lengths)
+        phi = _check_params(params, lengths.size)
+        k = int(self.n_states)
+        if self._left_right and lengths.min() < k:
+            short = np.flatnonzero(lengths < k)
+            raise InvalidInputError(f"{short.size} sequence(s) (first: #{short[0]}, {lengths[short[0]]} frames) are "
+                                    f"shorter than the {k}-state left-right chain; every sequence needs >= n_states "
+                                    "frames (use fewer states or drop the short sequences)")
+        batch = _Batch.build(X, lengths, phi, X.mean(axis=0), self.covariance_type)
+        for name in ("W_", "mean_bar_", "covars_", "transmat_", "startprob_"):
+            self.__dict__.pop(name, None)
+        self.n_features_in_ = X.shape[1]
+        self.n_params_ = phi.shape[1]
+        self.train_params_ = phi
+
+        gamma, xi = _equal_parts(lengths, k)
+        if self._left_right:
+            self.startprob_ = np.eye(k)[0]
+        else:
+            # Blur the cut so every state sees data and every transition stays possible.
+            gamma = np.where(gamma.any(axis=2, keepdims=True), 0.9 * gamma + 0.1 / k, 0.0)
+            xi = xi + 1.0
+            first = gamma[:, 0].sum(axis=0)
+            self.startprob_ = first / first.sum()
+        self._fit_em(batch, gamma, xi)
+        return self
+
+    def _fit_em(self, batch: _Batch, gamma: np.ndarray, xi: np.ndarray) -> None:
+        self._m_step(batch, gamma, xi)
+        history: list[float] = []
+        converged = False
+        for it in range(int(self.n_iter)):
+            try:
+                ll, gamma, xi = self._e_step(batch)
+            except InvalidInputError as exc:
+                raise InvalidInputError(f"EM iteration {it}: {exc}; increase reg_covar (now {self.reg_covar})") from exc
+            total = float(ll.sum())
+            if not np.isfinite(total):
+                raise InvalidInputError(f"EM iteration {it}: a training sequence has zero likelihood under the "
+                                        "current model; check the data for outliers or increase reg_covar")
+            history.append(total)
+            gain = total - history[-2] if len(history) > 1 else np.inf
+            logger.debug("EM iteration %d: log-likelihood %.6f (gain %.3g)", it, total, gain)
+            if gain < -1e-8 * abs(total):
+                logger.warning("EM log-likelihood fell by %.3g at iteration %d (numerical noise?)", -gain, it)
+            self._m_step(batch, gamma, xi)
+            if gain < self.tol:
+                converged = True
+                break
+        self.log_likelihood_history_ = np.array(history)
+        self.monitor_ = EMReport(tuple(history), converged, len(history))
+
+    # ----------------------------------------------------------------------------- inference
+    def score(self, X, phi) -> float:
+        """Log-likelihood of one sequence ``X`` (T, D) under the model at effect ``phi`` (p,)."""
+        self._check_fitted()
+        X = self._check_sequence(X)
+        phi = self._check_phi(phi)
+        return float(self._score_batch(X, phi[None])[0])
+
+    def _score_batch(self, X: np.ndarray, phis: np.ndarray) -> np.ndarray:
+        """Log-likelihood of the same sequence at each row of ``phis`` (R, p), batched over R."""
+        r = phis.shape[0]
+        batch = _Batch.build(np.tile(X, (r, 1)), np.full(r, X.shape[0]), phis, self.mean_bar_.mean(axis=0),
+                             self.covariance_type)
+        return self._e_step(batch)[0]
+
+    def predict(self, X, phi) -> np.ndarray:
+        """Most likely state of each frame of ``X`` (T, D) at effect ``phi`` (Viterbi), ``(T,)`` ints."""
+        self._check_fitted()
+        X = self._check_sequence(X)
+        phi = self._check_phi(phi)
+        offset = self.mean_bar_.mean(axis=0)
+        logb = log_gaussian_density_padded((X - offset)[None], self._means_at(phi[None], offset), self.covars_,
+                                           self.covariance_type)[0]
+        with np.errstate(divide="ignore"):
+            return viterbi(np.log(self.startprob_), np.log(self.transmat_), logb, [X.shape[0]], self._log_end())[1]
+
+    def estimate_params(self, X, n_restarts: int = 5, n_iter: int = 30, tol: float = 1e-6) -> np.ndarray:
+        """The effect phi (p,) that maximises the likelihood of one sequence ``X`` (T, D), by EM.
+
+        Starts from the mean training effect and ``n_restarts - 1`` random training effects, all run
+        together as one batch; each M-step is the closed-form
+        ``phi = (sum_tj g_tj W_j^T S_j^-1 W_j)^-1 sum_tj g_tj W_j^T S_j^-1 (x_t - mean_bar_j)``.
+        """
+        return self._estimate(X, n_restarts, n_iter, tol)[0]
+
+    def _estimate(self, X, n_restarts: int = 5, n_iter: int = 30, tol: float = 1e-6) -> tuple[np.ndarray, float]:
+        self._check_fitted()
+        X = self._check_sequence(X)
+        if not (_is_int(n_restarts) and _is_int(n_iter) and n_restarts >= 1 and n_iter >= 1):
+            raise InvalidInputError(f"n_restarts and n_iter must be ints >= 1; got {n_restarts!r}, {n_iter!r}")
+        if self.n_params_ == 0:
+            return np.zeros(0), self.score(X, np.zeros(0))
+        rng = np.random.default_rng(self.random_state)
+        train = self.train_params_
+        picks = rng.choice(train.shape[0], size=min(int(n_restarts) - 1, train.shape[0]), replace=False)
+        phis = np.vstack([train.mean(axis=0, keepdims=True), train[picks]])
+        r = phis.shape[0]
+        offset = self.mean_bar_.mean(axis=0)
+        batch = _Batch.build(np.tile(X, (r, 1)), np.full(r, X.shape[0]), phis, offset, self.covariance_type)
+        previous = np.full(r, -np.inf)
+        for _ in range(int(n_iter)):
+            ll, gamma, _ = self._e_step(batch)
+            batch.phi = self._phi_update(batch, gamma)
+            if np.all(ll - previous < tol):
+                break
+            previous = ll
+        ll = self._e_step(batch)[0]
+        best = int(np.argmax(ll))
+        return batch.phi[best].copy(), float(ll[best])
+
+    def _phi_update(self, batch: _Batch, gamma: np.ndarray) -> np.ndarray:
+        """Closed-form maximiser over phi of the expected complete log-likelihood, one phi per sequence."""
+        prec, _ = precision_cholesky(self.covars_, self.covariance_type)
+        pw = np.matmul(prec, self.W_)                                          # (K, D, p): P_j W_j
+        pm = np.einsum("kij,kj->ki", prec, self.mean_bar_ - batch.offset)      # (K, D):    P_j mu_bar_j
+        occ = gamma.sum(axis=1)                                                # (S, K)
+        occ_x = np.matmul(gamma.transpose(0, 2, 1), batch.X)                   # (S, K, D)
+        lhs = np.einsum("sk,kdp,kdq->spq", occ, pw, pw)
+        resid = np.einsum("kij,skj->ski", prec, occ_x) - occ[:, :, None] * pm[None]
+        rhs = np.einsum("kdp,skd->sp", pw, resid)
+        try:
+            return np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError as exc:
+            raise IdentifiabilityError("phi is not identifiable from this sequence under this model "
+                                       "(sum_j W_j^T S_j^-1 W_j is singular)") from exc
+
+    # ----------------------------------------------------------------------------- synthesis
+    def synthesize(self, phi, n_frames: int | None = None) -> np.ndarray:
+        """Prototype movement ``(T, D)`` for effect ``phi``: the state means at phi, linearly interpolated.
+
+        Mean ``j + 1`` is reached ``1 / (1 - a_jj)`` frames (state j's expected duration) after mean
+        ``j``, so ``T = round(sum_{j<K-1} 1/(1 - a_jj)) + 1``; with ``n_frames`` the same path is
+        resampled to that many frames.  Left-right models only.
+        """
+        self._check_fitted()
+        if not self._left_right:
+            raise InvalidInputError("synthesize needs a left-right model (topology='left-right'); this one is ergodic")
+        phi = self._check_phi(phi)
+        if n_frames is not None and (not _is_int(n_frames) or n_frames < 1):
+            raise InvalidInputError(f"n_frames must be None or an int >= 1; got {n_frames!r}")
+        means = self.mean_bar_ + self.W_ @ phi                                   # (K, D)
+        stay = np.clip(np.diagonal(self.transmat_)[:-1], 0.0, 1.0 - 1e-12)
+        anchors = np.concatenate([[0.0], np.cumsum(1.0 / (1.0 - stay))])
+        if n_frames is None:
+            n_frames = int(round(anchors[-1])) + 1
+        times = np.linspace(0.0, anchors[-1], int(n_frames))
+        if means.shape[0] == 1:
+            return np.repeat(means, int(n_frames), axis=0)
+        return np.stack([np.interp(times, anchors, means[:, i]) for i in range(means.shape[1])], axis=1)
+
+    # ------------------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
+        """Write the model to exactly ``path`` in the versioned ``.npz`` format documented in this module.
+
+        An existing file raises DataExistsError unless ``overwrite``; the write goes through a
+        temporary file and a rename, so a crash never leaves half a model behind.
+        """
+        self._check_fitted()
+        path = Path(path)
+        seed = self.random_state
+        arrays = {
+            "format_version": np.array(FORMAT_VERSION),
+            "kind": np.array("ParametricHMM"),
+            "n_states": np.array(int(self.n_states)),
+            "topology": np.array(str(self.topology)),
+            "covariance_type": np.array(str(self.covariance_type)),
+            "n_iter": np.array(int(self.n_iter)),
+            "tol": np.array(float(self.tol)),
+            "reg_covar": np.array(float(self.reg_covar)),
+            "random_state": np.array([int(seed)] if isinstance(seed, (int, np.integer)) else [], dtype=np.int64),
+            "startprob_": self.startprob_,
+            "transmat_": self.transmat_,
+            "mean_bar_": self.mean_bar_,
+            "W_": self.W_,
+            "covars_": self.covars_,
+            "train_params_": self.train_params_,
+            "log_likelihood_history_": getattr(self, "log_likelihood_history_", np.zeros(0)),
+            "converged_": np.array(bool(getattr(self, "monitor_", EMReport((), False, 0)).converged)),
+        }
+        if path.exists() and not overwrite:
+            raise DataExistsError(f"{path} already exists; pass overwrite=True to replace it")
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **arrays)
+            os.replace(tmp, path)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise DataFileError(f"could not write model file {path}: {exc}") from exc
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ParametricHMM:
+        """Read a model written by :meth:`save`; a missing, corrupt or other-version file raises DataFileError."""
+        path = Path(path)
+        if not path.is_file():
+            raise DataFileError(f"model file {path} does not exist")
+        try:
+            loaded = np.load(path, allow_pickle=False)
+            if not isinstance(loaded, np.lib.npyio.NpzFile):
+                raise ValueError("it holds a single array, not an .npz archive")
+            with loaded as data:
+                arrays = {key: data[key] for key in data.files}
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+            raise DataFileError(f"{path} is not a readable ParametricHMM .npz file: {exc}") from exc
+        version = arrays.get("format_version")
+        if version is None or version.shape != () or str(arrays.get("kind", "")) != "ParametricHMM":
+            raise DataFileError(f"{path} is not a ParametricHMM file (no format_version/kind entries)")
+        if int(version) != FORMAT_VERSION:
+            raise DataFileError(f"{path} has format_version {int(version)}; this version of hoap_actions reads "
+                                f"format_version {FORMAT_VERSION} only")
+        try:
+            seed = arrays["random_state"]
+            model = cls(n_states=int(arrays["n_states"]), topology=str(arrays["topology"]),
+                        covariance_type=str(arrays["covariance_type"]), n_iter=int(arrays["n_iter"]),
+                        tol=float(arrays["tol"]), reg_covar=float(arrays["reg_covar"]),
+                        random_state=int(seed[0]) if seed.size else None)
+            model._check_hyper_parameters()
+            k = model.n_states
+            mean_bar = np.asarray(arrays["mean_bar_"], dtype=np.float64)
+            d = mean_bar.shape[1]
+            w = np.asarray(arrays["W_"], dtype=np.float64)
+            cov_shape = (k, d, d) if model.covariance_type == "full" else (k, d)
+            learned = {
+                "startprob_": (arrays["startprob_"], (k,)),
+                "transmat_": (arrays["transmat_"], (k, k)),
+                "mean_bar_": (mean_bar, (k, d)),
+                "W_": (w, (k, d, w.shape[-1])),
+                "covars_": (arrays["covars_"], cov_shape),
+                "train_params_": (arrays["train_params_"], (arrays["train_params_"].shape[0], w.shape[-1])),
+            }
+            for name, (value, shape) in learned.items():
+                value = np.asarray(value, dtype=np.float64)
+                if value.shape != shape or not np.all(np.isfinite(value)):
+                    raise DataFileError(f"{path}: entry {name} has shape {value.shape}, expected {shape} and finite")
+                setattr(model, name, value)
+            precision_cholesky(model.covars_, model.covariance_type)
+            history = np.asarray(arrays["log_likelihood_history_"], dtype=np.float64)
+            converged = bool(arrays["converged_"])
+        except (KeyError, IndexError, TypeError, ValueError) as exc:
+            raise DataFileError(f"{path}: missing or malformed entry ({exc})") from exc
+        model.n_features_in_ = d
+        model.n_params_ = w.shape[-1]
+        model.log_likelihood_history_ = history
+        model.monitor_ = EMReport(tuple(history.tolist()), converged, history.size)
+        return model
+
+
+# ------------------------------------------------------------------------------------- helpers
+def _is_int(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _is_real(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
+        and bool(np.isfinite(value))
+
+
+def _check_params(params, n_sequences: int) -> np.ndarray:
+    """Training effects as float (S, p), affinely spanning R^p so each W_j is identifiable."""
+    try:
+        phi = np.asarray(params, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"params must be a numeric array of shape (n_sequences, p); got {exc}") from exc
+    if phi.ndim != 2 or phi.shape[0] != n_sequences:
+        raise InvalidInputError(f"params must have shape (n_sequences, p) = ({n_sequences}, p), one effect per "
+                                f"sequence; got shape {phi.shape} (use params.reshape(-1, 1) for a scalar effect)")
+    if not np.all(np.isfinite(phi)):
+        raise InvalidInputError("params must be finite; found NaN or inf")
+    p = phi.shape[1]
+    if p and np.linalg.matrix_rank(phi - phi.mean(axis=0)) < p:
+        raise IdentifiabilityError(
+            f"the {n_sequences} training effects do not affinely span R^{p} (rank "
+            f"{np.linalg.matrix_rank(phi - phi.mean(axis=0))} < {p} after centring), so W is not identifiable; "
+            f"give at least {p + 1} sequences whose effects do not all lie on one hyperplane (e.g. not collinear)"
+        )
+    return phi
+
+
+def _equal_parts(lengths: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Hard posteriors (S, T, K) cutting each sequence into K equal parts, and their transition counts."""
+    s, t_max = lengths.size, int(lengths.max())
+    t = np.arange(t_max)
+    state = np.minimum((t[None, :] * k) // lengths[:, None], k - 1)
+    valid = t[None, :] < lengths[:, None]
+    gamma = np.zeros((s, t_max, k))
+    gamma[valid, state[valid]] = 1.0
+    xi = np.zeros((k, k))
+    pair = valid[:, 1:]
+    np.add.at(xi, (state[:, :-1][pair], state[:, 1:][pair]), 1.0)
+    return gamma, xi
+
+
+# -------------------------------------------------------------------------------- recognition
+def recognize(X, models: Mapping[str, ParametricHMM], n_restarts: int = 5) -> Recognition:
+    """Classify one movement ``X`` (T, D): estimate phi under each class's model, pick the most likely class.
+
+    A left-right model with more states than ``X`` has frames cannot explain it and scores ``-inf``.
+    """
+    if not models:
+        raise InvalidInputError("models must map at least one class label to a fitted ParametricHMM")
+    X, _ = validate_sequences(X)
+    scores: dict[str, float] = {}
+    phis: dict[str, np.ndarray] = {}
+    for label, model in models.items():
+        model._check_fitted()
+        if model._left_right and X.shape[0] < model.n_states:
+            scores[label], phis[label] = -np.inf, np.full(model.n_params_, np.nan)
+            continue
+        phis[label], scores[label] = model._estimate(X, n_restarts=n_restarts)
+    best = max(scores, key=scores.__getitem__)
+    if not np.isfinite(scores[best]):
+        raise InvalidInputError(f"no model can explain a {X.shape[0]}-frame sequence (every log-likelihood is -inf)")
+    return Recognition(label=best, phi=phis[best], log_likelihoods=scores, phis=phis)
+
+
+def select_n_states(X, lengths, params, candidates: Sequence[int], n_folds: int = 3,
+                    random_state: int | np.random.Generator | None = None,
+                    **model_kwargs) -> NStatesSelection:
+    """Choose ``n_states`` by cross-validation: mean held-out log-likelihood per frame (at the true effects).
+
+    Sequences are split into ``n_folds`` folds at random; ``model_kwargs`` go to :class:`ParametricHMM`.
+    Candidates that a fold cannot train (too few frames or effects) score ``-inf``.
+    """
+    X, lengths = validate_sequences(X, lengths)
+    phi = _check_params(params, lengths.size)
+    cands = list(candidates)
+    if not cands or not all(_is_int(c) and c >= 1 for c in cands):
+        raise InvalidInputError(f"candidates must be a non-empty list of ints >= 1; got {candidates!r}")
+    if not _is_int(n_folds) or not 2 <= n_folds <= lengths.size:
+        raise InvalidInputError(f"n_folds must be an int in [2, n_sequences={lengths.size}]; got {n_folds!r}")
+    rng = np.random.default_rng(random_state)
+    folds = np.array_split(rng.permutation(lengths.size), int(n_folds))
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    seqs = [X[a:a + n] for a, n in zip(starts, lengths)]
+    scores: dict[int, float] = {}
+    for k in map(int, cands):
+        total, frames = 0.0, 0
+        for held in folds:
+            train = np.setdiff1d(np.arange(lengths.size), held)
+            model = ParametricHMM(n_states=k, **model_kwargs)
+            try:
+                model.fit(np.concatenate([seqs[i] for i in train]), lengths[train], phi[train])
+                total += sum(model.score(seqs[i], phi[i]) for i in held)
+            except InvalidInputError as exc:
+                logger.info("n_states=%d: fold not usable (%s)", k, exc)
+                total = -math.inf
+                break
+            frames += int(lengths[held].sum())
+        scores[k] = total / frames if frames else -math.inf
+        logger.debug("n_states=%d: held-out log-likelihood per frame %.4f", k, scores[k])
+    best = max(scores, key=scores.__getitem__)
+    if not np.isfinite(scores[best]):
+        raise InvalidInputError("no candidate n_states could be cross-validated (sequences too short or "
+                                "too few effects per fold)")
+    return NStatesSelection(n_states=best, scores=scores)
