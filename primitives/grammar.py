@@ -1,0 +1,257 @@
+"""The action grammar: a probabilistic finite-state automaton over primitive classes.
+
+Learned from the primitive-class sequences of the demonstrations (e.g. approach -> {push, move,
+rotate} -> remove). The automaton's states are the classes plus ``<start>`` and ``<end>``; being in
+state ``c`` means class ``c`` was performed last, so the transition probabilities are the relative
+counts of class bigrams in the demonstrations (first-order Markov), with optional additive smoothing.
+
+The *language* of the grammar is fixed by the transitions seen in training: :meth:`is_grammatical`
+and :meth:`sample` use only those. Smoothing changes probabilities only (:meth:`log_probability`,
+:meth:`next_distribution`), so a tracker can still follow an action it never saw after another.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Hashable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
+
+FORMAT_VERSION = 1
+START, END = "<start>", "<end>"
+
+Symbol = Hashable  # a primitive class: an int id or a str name
+
+
+class ActionGrammar:
+    """First-order probabilistic finite-state automaton over primitive classes.
+
+    Parameters
+    ----------
+    smoothing:
+        Additive (Lidstone) pseudo-count given to every possible transition (any class or
+        ``<end>`` after a class, any class after ``<start>``); 0 gives maximum likelihood.
+    """
+
+    def __init__(self, smoothing: float = 0.0) -> None:
+        self.smoothing = smoothing
+
+    # -- fit
+
+    def fit(self, sequences: Sequence[Sequence[Symbol]]) -> ActionGrammar:
+        """Count class bigrams (with ``<start>`` and ``<end>``) in the demonstrations' class sequences.
+
+        Classes are ints or strs (numpy ints are taken as ints); each sequence needs >= 1 class.
+        """
+        if not (isinstance(self.smoothing, (int, float)) and np.isfinite(self.smoothing) and self.smoothing >= 0):
+            raise InvalidInputError(f"smoothing must be a finite number >= 0, got {self.smoothing!r}")
+        cleaned = _check_sequences(sequences)
+        self.symbols_ = list(dict.fromkeys(s for seq in cleaned for s in seq))
+        index = self._index()
+        n = len(self.symbols_)
+        counts = np.zeros((n + 2, n + 2))
+        for seq in cleaned:
+            path = [0, *(index[s] for s in seq), n + 1]
+            np.add.at(counts, (path[:-1], path[1:]), 1.0)
+        self.counts_ = counts
+        self.n_sequences_ = len(cleaned)
+        self.transmat_ = self._probabilities(counts)
+        return self
+
+    def _index(self) -> dict[Symbol, int]:
+        """Automaton state of each class: 0 is ``<start>``, 1..n the classes, n + 1 ``<end>``."""
+        return {s: k + 1 for k, s in enumerate(self.symbols_)}
+
+    def _allowed(self, n: int) -> np.ndarray:
+        """Transitions that can exist: from start or a class, to a class or end; not start -> end."""
+        allowed = np.zeros((n + 2, n + 2), dtype=bool)
+        allowed[: n + 1, 1:] = True
+        allowed[0, n + 1] = False
+        return allowed
+
+    def _probabilities(self, counts: np.ndarray) -> np.ndarray:
+        """Row-normalised counts plus ``smoothing`` on every possible transition (end row stays zero)."""
+        smoothed = counts + self.smoothing * self._allowed(len(counts) - 2)
+        totals = smoothed.sum(axis=1, keepdims=True)
+        return np.divide(smoothed, totals, out=np.zeros_like(smoothed), where=totals > 0)
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "transmat_"):
+            raise NotFittedError("this ActionGrammar is not fitted yet: call fit() or load() first")
+
+    # -- queries
+
+    def _path(self, sequence: Sequence[Symbol]) -> list[int] | None:
+        """Automaton states visited by ``sequence`` (start and end included); None if a class is unknown."""
+        index = self._index()
+        symbols = [_clean_symbol(s) for s in sequence]
+        if any(s not in index for s in symbols):
+            return None
+        return [0, *(index[s] for s in symbols), len(self.symbols_) + 1]
+
+    def is_grammatical(self, sequence: Sequence[Symbol]) -> bool:
+        """True when every transition of ``<start> sequence <end>`` was seen in training."""
+        self._check_fitted()
+        path = self._path(sequence)
+        return path is not None and len(path) > 2 and bool(np.all(self.counts_[path[:-1], path[1:]] > 0))
+
+    def log_probability(self, sequence: Sequence[Symbol]) -> float:
+        """Natural log of the (smoothed) probability of the whole sequence, end included; -inf if impossible."""
+        self._check_fitted()
+        path = self._path(sequence)
+        if path is None or len(path) <= 2:
+            return float("-inf")
+        with np.errstate(divide="ignore"):
+            return float(np.log(self.transmat_[path[:-1], path[1:]]).sum())
+
+    def next_distribution(self, prefix: Sequence[Symbol] = ()) -> dict[Symbol, float]:
+        """Probability of each class (and of ``END``, the sequence being over) after ``prefix``.
+
+        Only the last class matters (first-order). Zero-probability entries are left out.
+        """
+        self._check_fitted()
+        prefix = list(prefix)
+        index = self._index()
+        if prefix:
+            last = _clean_symbol(prefix[-1])
+            if last not in index:
+                raise InvalidInputError(f"unknown class {last!r} in prefix; known classes: {self.symbols_}")
+            row = self.transmat_[index[last]]
+        else:
+            row = self.transmat_[0]
+        targets = [*self.symbols_, END]
+        return {t: float(p) for t, p in zip(targets, row[1:]) if p > 0}
+
+    def sample(self, random_state: int | np.random.Generator | None = None) -> list[Symbol]:
+        """Draw one grammatical class sequence: walk the seen transitions with their (smoothed) probabilities.
+
+        Every class seen in training was followed by ``<end>`` at some point, so a walk ends with
+        probability 1.
+        """
+        self._check_fitted()
+        rng = np.random.default_rng(random_state)
+        weights = np.where(self.counts_ > 0, self.transmat_, 0.0)
+        end = len(self.symbols_) + 1
+        state, out = 0, []
+        while True:
+            row = weights[state]
+            state = int(rng.choice(len(row), p=row / row.sum()))
+            if state == end:
+                return out
+            out.append(self.symbols_[state - 1])
+
+    # -- text
+
+    def _rules(self) -> list[tuple[str, list[tuple[str, float]]]]:
+        names = [START, *(str(s) for s in self.symbols_), END]
+        rules = []
+        for i in range(len(names) - 1):
+            targets = [(names[j], float(self.transmat_[i, j])) for j in np.flatnonzero(self.counts_[i] > 0)]
+            if targets:
+                rules.append((names[i], sorted(targets, key=lambda t: -t[1])))
+        return rules
+
+    def __str__(self) -> str:
+        """One rule per state, the successors seen in training with their probabilities."""
+        if not hasattr(self, "transmat_"):
+            return f"ActionGrammar(smoothing={self.smoothing}) (not fitted)"
+        lines = [f"ActionGrammar over {len(self.symbols_)} classes from {self.n_sequences_} sequences:"]
+        for source, targets in self._rules():
+            lines.append(f"  {source} -> " + " | ".join(f"{t} ({p:.2f})" for t, p in targets))
+        return "\n".join(lines)
+
+    def to_dot(self) -> str:
+        """Graphviz DOT text of the automaton (seen transitions, labelled with probabilities)."""
+        self._check_fitted()
+        lines = [
+            "digraph ActionGrammar {",
+            "  rankdir=LR;",
+            f"  {_dot_id(START)} [shape=point];",
+            f"  {_dot_id(END)} [shape=doublecircle, label=\"end\"];",
+        ]
+        lines += [f"  {_dot_id(str(s))} [shape=box];" for s in self.symbols_]
+        for source, targets in self._rules():
+            lines += [f"  {_dot_id(source)} -> {_dot_id(t)} [label=\"{p:.2f}\"];" for t, p in targets]
+        lines.append("}")
+        return "\n".join(lines) + "\n"
+
+    # -- persistence
+
+    def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
+        """Write the grammar as JSON (``format_version`` = :data:`FORMAT_VERSION`)."""
+        self._check_fitted()
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise DataExistsError(f"{path} exists; pass overwrite=True to replace it")
+        document = {
+            "format_version": FORMAT_VERSION,
+            "kind": "ActionGrammar",
+            "smoothing": self.smoothing,
+            "symbols": self.symbols_,
+            "counts": self.counts_.tolist(),
+            "n_sequences": self.n_sequences_,
+        }
+        path.write_text(json.dumps(document, indent=1))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ActionGrammar:
+        """Read a grammar written by :meth:`save`."""
+        path = Path(path)
+        try:
+            document = json.loads(path.read_text())
+        except FileNotFoundError as exc:
+            raise DataFileError(f"no grammar file at {path}") from exc
+        except (OSError, ValueError) as exc:
+            raise DataFileError(f"{path} is not a readable JSON grammar file: {exc}") from exc
+        if not isinstance(document, dict) or document.get("kind") != "ActionGrammar":
+            raise DataFileError(f"{path} is not an ActionGrammar file")
+        if document.get("format_version") != FORMAT_VERSION:
+            raise DataFileError(
+                f"{path} has format_version {document.get('format_version')!r}; supported: {FORMAT_VERSION}"
+            )
+        try:
+            grammar = cls(smoothing=float(document["smoothing"]))
+            grammar.symbols_ = [_clean_symbol(s) for s in document["symbols"]]
+            n = len(grammar.symbols_)
+            grammar.counts_ = np.array(document["counts"], dtype=float).reshape(n + 2, n + 2)
+            grammar.n_sequences_ = int(document["n_sequences"])
+        except (KeyError, TypeError, ValueError, InvalidInputError) as exc:
+            raise DataFileError(f"{path} is a corrupt ActionGrammar file: {exc}") from exc
+        grammar.transmat_ = grammar._probabilities(grammar.counts_)
+        return grammar
+
+
+def _clean_symbol(symbol: object) -> Symbol:
+    """A class as a JSON-safe int or str (numpy ints become ints; bools and others are refused)."""
+    if isinstance(symbol, (bool, np.bool_)) or not isinstance(symbol, (int, np.integer, str)):
+        raise InvalidInputError(f"a primitive class must be an int id or a str name, got {symbol!r}")
+    if isinstance(symbol, str) and symbol in (START, END):
+        raise InvalidInputError(f"{symbol!r} is reserved for the automaton's start/end state")
+    return int(symbol) if isinstance(symbol, (int, np.integer)) else symbol
+
+
+def _check_sequences(sequences: Sequence[Sequence[Symbol]]) -> list[list[Symbol]]:
+    """Validate a non-empty list of non-empty class sequences."""
+    if isinstance(sequences, (str, bytes)):
+        raise InvalidInputError("sequences must be a list of class sequences, got a string")
+    try:
+        items = [list(seq) if not isinstance(seq, (str, bytes)) else None for seq in sequences]
+    except TypeError as exc:
+        raise InvalidInputError(f"sequences must be a list of class sequences: {exc}") from exc
+    if not items:
+        raise InvalidInputError("sequences is empty: at least one demonstration's class sequence is needed")
+    for i, seq in enumerate(items):
+        if seq is None:
+            raise InvalidInputError(f"sequences[{i}] is a string; give a list of classes, e.g. ['approach', 'push']")
+        if not seq:
+            raise InvalidInputError(f"sequences[{i}] is empty; every demonstration has at least one class")
+    return [[_clean_symbol(s) for s in seq] for seq in items]  # type: ignore[union-attr]
+
+
+def _dot_id(name: str) -> str:
+    """A quoted DOT identifier."""
+    return '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'

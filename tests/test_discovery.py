@@ -1,0 +1,393 @@
+"""Primitive discovery (paper's eqs. 1-3, Figs. 5 and 7) on synthetic object trajectories, pure numpy."""
+
+from __future__ import annotations
+
+import json
+from itertools import pairwise, product
+
+import numpy as np
+import pytest
+
+from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.primitives.discovery import (
+    APPROACH,
+    MANIPULATION,
+    REMOVE,
+    PrimitiveDiscovery,
+    find_primitives,
+    gaussian_kl,
+    longest_common_substring,
+    merge_gaussians,
+    symmetric_kl_matrix,
+)
+from hoap_actions.primitives.evaluation import boundary_f1
+from hoap_actions.primitives.grammar import ActionGrammar
+
+DIRECTIONS = {"right": (1.0, 0.0), "left": (-1.0, 0.0), "up": (0.0, 1.0), "down": (0.0, -1.0)}
+DISTANCES = (0.04, 0.08, 0.12)  # 2, 4 and 6 spacings of 2 cm: the Fig. 7 P1 / P1 P2 / P1 P2 P3 case
+PARK = np.array([-0.25, 0.0, 0.25])
+
+
+def minimum_jerk(n: int) -> np.ndarray:
+    s = np.linspace(0.0, 1.0, n)
+    return 10 * s**3 - 15 * s**4 + 6 * s**5
+
+
+def push_demo(direction, distance, rng, noise=0.0):
+    """Object at rest, pushed (minimum jerk) along ``direction``, at rest again; hand markers; true labels."""
+    start = np.array([rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), 0.02])
+    yaw = rng.uniform(-0.5, 0.5)
+    n_approach, n_remove = rng.integers(20, 30, size=2)
+    n_push = int(30 * (0.8 + 8 * distance)) + int(rng.integers(0, 5))
+    u = np.array([*DIRECTIONS[direction], 0.0])
+    travelled = np.concatenate([np.zeros(n_approach), distance * minimum_jerk(n_push), np.full(n_remove, distance)])
+    poses = np.hstack([start + travelled[:, None] * u, np.tile([0.0, 0.0, yaw], (len(travelled), 1))])
+    poses += noise * rng.standard_normal(poses.shape)
+    grasp = start - 0.03 * u
+    hand = np.concatenate(
+        [
+            PARK + minimum_jerk(n_approach)[:, None] * (grasp - PARK),
+            grasp + travelled[n_approach : n_approach + n_push, None] * u,
+            grasp + distance * u + minimum_jerk(n_remove)[:, None] * (PARK - grasp - distance * u),
+        ]
+    )
+    markers = np.hstack([hand + 0.01 * k for k in range(6)])
+    labels = np.repeat([0, 1, 2], [n_approach, n_push, n_remove])
+    return poses, markers, labels
+
+
+def push_dataset(seed=0, noise=0.0, repeats=1):
+    rng = np.random.default_rng(seed)
+    keys = [key for _ in range(repeats) for key in product(DIRECTIONS, DISTANCES)]
+    demos = [push_demo(d, dist, rng, noise) for d, dist in keys]
+    return keys, [o for o, _, _ in demos], [h for _, h, _ in demos], [lab for _, _, lab in demos]
+
+
+@pytest.fixture(scope="module")
+def pushes():
+    keys, objects, hands, labels = push_dataset(seed=1, noise=3e-4, repeats=2)
+    model = PrimitiveDiscovery(random_state=0).fit(objects, hands)
+    return keys, objects, hands, labels, model
+
+
+def random_spd(rng, n):
+    a = rng.standard_normal((n, n))
+    return a @ a.T + n * np.eye(n) * 0.1
+
+
+# --------------------------------------------------------------------------------- eqs. (1) - (3)
+
+
+def test_kl_of_identical_gaussians_is_zero():
+    rng = np.random.default_rng(0)
+    mean, cov = rng.standard_normal(6), random_spd(rng, 6)
+    assert gaussian_kl(mean, cov, mean, cov) == pytest.approx(0.0, abs=1e-10)
+    sym = symmetric_kl_matrix(mean[None], cov[None], mean[None], cov[None])
+    assert sym[0, 0] == pytest.approx(0.0, abs=1e-10)
+
+
+def test_kl_matches_one_dimensional_closed_form():
+    m0, s0, m1, s1 = 0.3, 0.5, -0.2, 1.5
+    expected = np.log(s1 / s0) + (s0**2 + (m0 - m1) ** 2) / (2 * s1**2) - 0.5
+    assert gaussian_kl([m0], [[s0**2]], [m1], [[s1**2]]) == pytest.approx(expected, rel=1e-12)
+
+
+def test_kl_matches_monte_carlo():
+    rng = np.random.default_rng(1)
+    mean_q, cov_q = rng.standard_normal(3), random_spd(rng, 3)
+    mean_p, cov_p = rng.standard_normal(3), random_spd(rng, 3)
+    x = rng.multivariate_normal(mean_q, cov_q, size=200_000)
+
+    def log_pdf(x, mean, cov):
+        d = x - mean
+        return -0.5 * (np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov), d) + np.linalg.slogdet(2 * np.pi * cov)[1])
+
+    log_ratio = log_pdf(x, mean_q, cov_q) - log_pdf(x, mean_p, cov_p)
+    standard_error = log_ratio.std() / np.sqrt(len(x))
+    assert gaussian_kl(mean_q, cov_q, mean_p, cov_p) == pytest.approx(log_ratio.mean(), abs=4 * standard_error)
+
+
+def test_symmetric_kl_matrix_is_the_vectorised_mean_of_both_directions():
+    rng = np.random.default_rng(2)
+    means_a, covs_a = rng.standard_normal((3, 4)), np.array([random_spd(rng, 4) for _ in range(3)])
+    means_b, covs_b = rng.standard_normal((5, 4)), np.array([random_spd(rng, 4) for _ in range(5)])
+    matrix = symmetric_kl_matrix(means_a, covs_a, means_b, covs_b)
+    assert matrix.shape == (3, 5)
+    for k, m in product(range(3), range(5)):
+        both = gaussian_kl(means_a[k], covs_a[k], means_b[m], covs_b[m]) + gaussian_kl(
+            means_b[m], covs_b[m], means_a[k], covs_a[k]
+        )
+        assert matrix[k, m] == pytest.approx(both / 2, rel=1e-9)
+
+
+def test_merge_follows_eqs_2_and_3_on_a_known_answer():
+    mean, cov = merge_gaussians(np.zeros(2), np.diag([1.0, 4.0]), np.ones(2), np.diag([4.0, 1.0]))
+    # precisions (1, 1/4) and (1/4, 1) average to 5/8 each: covariance 1.6 I
+    np.testing.assert_allclose(cov, 1.6 * np.eye(2))
+    np.testing.assert_allclose(mean, 1.6 * 0.5 * np.array([0.25, 1.0]))
+
+
+def test_merge_weighting_extremes_and_identical_states():
+    rng = np.random.default_rng(3)
+    m0, c0, m1, c1 = rng.standard_normal(3), random_spd(rng, 3), rng.standard_normal(3), random_spd(rng, 3)
+    mean, cov = merge_gaussians(m0, c0, m1, c1, omega=1.0)
+    np.testing.assert_allclose(mean, m0)
+    np.testing.assert_allclose(cov, c0)
+    mean, cov = merge_gaussians(m0, c0, m0, c0)
+    np.testing.assert_allclose(mean, m0)
+    np.testing.assert_allclose(cov, c0)
+    with pytest.raises(InvalidInputError, match="omega"):
+        merge_gaussians(m0, c0, m1, c1, omega=1.5)
+
+
+# ------------------------------------------------------------------------------- LCS (Fig. 5)
+
+
+def test_fig5_example():
+    primitives, labels = find_primitives([[1, 2, 3, 4, 5, 6, 7, 8], [9, 10, 1, 2, 3, 4, 11, 12]])
+    assert primitives == [(1, 2, 3, 4), (5, 6, 7, 8), (9, 10), (11, 12)]
+    assert labels == [[0, 1], [2, 0, 3]]
+    assert longest_common_substring([1, 2, 3, 4, 5, 6, 7, 8], [9, 10, 1, 2, 3, 4, 11, 12]) == (0, 2, 4)
+
+
+def test_longest_common_substring_matches_brute_force():
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        a, b = rng.integers(0, 4, size=rng.integers(0, 12)), rng.integers(0, 4, size=rng.integers(0, 12))
+        start_a, start_b, length = longest_common_substring(a, b)
+        brute = max(
+            (n for n in range(min(len(a), len(b)) + 1) for i in range(len(a) - n + 1) for j in range(len(b) - n + 1)
+             if np.array_equal(a[i : i + n], b[j : j + n])),
+            default=0,
+        )
+        assert length == brute
+        assert np.array_equal(a[start_a : start_a + length], b[start_b : start_b + length])
+
+
+def test_shorter_common_substrings_split_longer_primitives():
+    # the Fig. 7 push structure: the longest push reuses the shorter pushes' primitives
+    primitives, labels = find_primitives([[1, 2], [1, 2, 3, 4], [1, 2, 3, 4, 5, 6]])
+    assert primitives == [(1, 2), (3, 4), (5, 6)]
+    assert labels == [[0], [0, 1], [0, 1, 2]]
+
+
+def test_primitives_tile_every_sequence():
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        sequences = [list(rng.integers(0, 6, size=rng.integers(0, 10))) for _ in range(rng.integers(1, 5))]
+        primitives, labels = find_primitives(sequences)
+        assert len(set(primitives)) == len(primitives)
+        for seq, lab in zip(sequences, labels):
+            assert [s for k in lab for s in primitives[k]] == seq
+
+
+# ------------------------------------------------------------------------- discovery on pushes
+
+
+def manipulation_ids(model, demo):
+    return [pid for pid, *_ in model.segmentations_[demo] if model.primitive_kinds_[pid] == MANIPULATION]
+
+
+def test_pushes_give_fig7_structure(pushes):
+    keys, _, _, _, model = pushes
+    assert model.primitive_kinds_.count(APPROACH) == 1 and model.primitive_kinds_.count(REMOVE) == 1
+    per_direction = {}
+    for demo, (direction, distance) in enumerate(keys):
+        kinds = [model.primitive_kinds_[pid] for pid, *_ in model.segmentations_[demo]]
+        assert kinds[0] == APPROACH and kinds[-1] == REMOVE
+        per_direction.setdefault(direction, {}).setdefault(distance, set()).add(tuple(manipulation_ids(model, demo)))
+    used = []
+    for direction, by_distance in per_direction.items():
+        assert all(len(v) == 1 for v in by_distance.values()), f"repetitions of a {direction} push disagree"
+        short, middle, long = (next(iter(by_distance[d])) for d in DISTANCES)
+        assert len(short) == 1 and middle[:1] == short and long[:2] == middle and len(long) == 3  # P1, P1 P2, P1 P2 P3
+        used.append(set(long))
+    assert len(set.union(*used)) == 12, "pushes in different directions share no primitive"
+
+
+def test_segments_tile_frames_and_match_true_phases(pushes):
+    _, objects, _, labels, model = pushes
+    coarse = []
+    for demo, obj in enumerate(objects):
+        segments = model.segmentations_[demo]
+        assert segments[0][1] == 0 and segments[-1][2] == len(obj)
+        assert all(a[2] == b[1] and a[1] < a[2] for a, b in pairwise(segments))
+        kinds = np.empty(len(obj), int)
+        for pid, start, end in segments:
+            kinds[start:end] = (APPROACH, MANIPULATION, REMOVE).index(model.primitive_kinds_[pid])
+        coarse.append(kinds)
+    # minimum-jerk pushes barely move at both ends, so the boundaries land within ~0.4 s of the truth
+    assert boundary_f1(coarse, labels, tolerance_frames=12) == 1.0
+
+
+def test_classes_carry_effects(pushes):
+    keys, objects, hands, _, model = pushes
+    assert [c.primitive_id for c in model.classes_] == list(range(len(model.primitives_)))
+    for cls in model.classes_:
+        assert cls.kind == model.primitive_kinds_[cls.primitive_id]
+        for segment in cls.segments:
+            track = hands[segment.demo][:, 6:9] if cls.kind != MANIPULATION else objects[segment.demo][:, :3]
+            assert segment.source == ("object" if cls.kind == MANIPULATION else "hand")
+            np.testing.assert_allclose(segment.effect, np.r_[track[segment.start], track[segment.end - 1]])
+        if cls.kind == MANIPULATION:  # every primitive moves the object by about two spacings
+            displacement = np.linalg.norm(cls.effects[:, 3:] - cls.effects[:, :3], axis=1)
+            np.testing.assert_allclose(displacement, 0.04, atol=0.012)
+        movements = cls.movements(hands)
+        assert [len(m) for m in movements] == [s.end - s.start for s in cls.segments]
+    approach = model.classes_[model.primitive_kinds_.index(APPROACH)]
+    np.testing.assert_allclose(approach.effects[:, :3], np.tile(PARK + 0.02, (len(keys), 1)), atol=1e-9)
+
+
+def test_predict_reproduces_the_training_segmentation(pushes):
+    _, objects, _, _, model = pushes
+    for labels, segments in zip(model.predict(objects), model.segmentations_):
+        expected = np.concatenate([np.full(end - start, pid) for pid, start, end in segments])
+        np.testing.assert_array_equal(labels, expected)
+
+
+def test_same_seed_same_result():
+    _, objects, hands, _ = push_dataset(seed=7, noise=3e-4)
+    a = PrimitiveDiscovery(random_state=3).fit(objects, hands)
+    b = PrimitiveDiscovery(random_state=3).fit(objects, hands)
+    assert a.primitives_ == b.primitives_ and a.segmentations_ == b.segmentations_ and a.classes_ == b.classes_
+    np.testing.assert_array_equal(a.joint_means_, b.joint_means_)
+    np.testing.assert_array_equal(a.transmat_, b.transmat_)
+
+
+def test_joint_hmm_is_a_valid_hmm(pushes):
+    *_, model = pushes
+    k = len(model.joint_means_)
+    assert model.joint_covars_.shape == (k, 6, 6) and model.transmat_.shape == (k, k)
+    np.testing.assert_allclose(model.transmat_.sum(axis=1), 1.0)
+    np.testing.assert_allclose(model.startprob_.sum(), 1.0)
+    assert np.all(np.linalg.eigvalsh(model.joint_covars_) > 0)
+    assert all(a != b for s in model.state_sequences_ for a, b in pairwise(s))  # repetitions dropped
+
+
+def test_rotation_gets_gaussians_and_is_relative_to_the_initial_pose():
+    t = minimum_jerk(60)
+    demos = []
+    for yaw0 in (0.0, 1.0, -2.0):
+        yaw = np.concatenate([np.full(20, yaw0), yaw0 + np.pi / 2 * t, np.full(20, yaw0 + np.pi / 2)])
+        demos.append(np.hstack([np.tile([0.1, -0.05, 0.02], (len(yaw), 1)), np.zeros((len(yaw), 2)), yaw[:, None]]))
+    model = PrimitiveDiscovery().fit(demos)
+    assert model.primitive_kinds_ == [APPROACH, MANIPULATION, REMOVE]
+    assert len(model.primitives_[1]) == 4  # pi/2 rad * 5 cm = 7.9 cm of arc: four 2-cm Gaussians
+    assert len(set(model.state_sequences_)) == 1  # the same rotation from any initial yaw
+
+
+def test_grammar_of_discovered_primitives():
+    """Discovery's class sequences feed the grammar: every demonstration is grammatical."""
+    _, objects, hands, _ = push_dataset(seed=3)
+    model = PrimitiveDiscovery().fit(objects, hands)
+    sequences = [[pid for pid, *_ in segments] for segments in model.segmentations_]
+    grammar = ActionGrammar().fit(sequences)
+    assert all(grammar.is_grammatical(seq) for seq in sequences)
+    approach, remove = model.primitive_kinds_.index("approach"), model.primitive_kinds_.index("remove")
+    assert grammar.next_distribution() == {approach: 1.0}
+    assert len(grammar.next_distribution([approach])) == 4  # the first primitive of each direction
+    assert not grammar.is_grammatical([remove, approach])
+
+
+# ------------------------------------------------------------------------------ documented edges
+
+
+def test_single_demonstration_is_approach_one_manipulation_remove():
+    _, objects, hands, _ = push_dataset(seed=2)
+    model = PrimitiveDiscovery().fit(objects[2:3], hands[2:3])
+    assert model.primitive_kinds_ == [APPROACH, MANIPULATION, REMOVE]
+    assert len(model.primitives_[1]) == 6  # 12 cm: nothing to compare with, so one primitive
+    assert [pid for pid, *_ in model.segmentations_[0]] == [0, 1, 2]
+
+
+def test_object_that_never_moves_is_all_approach():
+    _, objects, hands, _ = push_dataset(seed=2)
+    still = np.tile(objects[0][:1], (40, 1))
+    model = PrimitiveDiscovery().fit([still])
+    assert model.primitive_kinds_ == [APPROACH] and model.segmentations_ == [[(0, 0, 40)]]
+    mixed = PrimitiveDiscovery().fit([still, objects[0]], [hands[0][:40], hands[0]])
+    assert mixed.segmentations_[0] == [(0, 0, 40)]
+    assert [mixed.primitive_kinds_[p] for p, *_ in mixed.segmentations_[1]] == [APPROACH, MANIPULATION, REMOVE]
+    single_frame = PrimitiveDiscovery().fit([objects[0][:1]])
+    assert single_frame.segmentations_ == [[(0, 0, 1)]]
+
+
+def test_without_hands_stationary_effects_use_the_object():
+    _, objects, _, _ = push_dataset(seed=2)
+    model = PrimitiveDiscovery().fit(objects[:3])
+    approach = model.classes_[0]
+    assert approach.kind == APPROACH and {s.source for s in approach.segments} == {"object"}
+    np.testing.assert_allclose(approach.effects[:, :3], [o[0, :3] for o in objects[:3]])
+
+
+@pytest.mark.parametrize(
+    "trajectories, message",
+    [
+        ([], "empty"),
+        ([np.zeros((10, 3))], r"shape \(T, 6\)"),
+        ([np.zeros(6)], r"shape \(T, 6\)"),
+        ([np.zeros((0, 6))], "T >= 1"),
+        ([np.full((10, 6), np.nan)], "NaN"),
+        (np.zeros((10, 6)), "list"),
+        ([np.array([["a"] * 6])], "not numeric"),
+    ],
+)
+def test_bad_trajectories(trajectories, message):
+    with pytest.raises(InvalidInputError, match=message):
+        PrimitiveDiscovery().fit(trajectories)
+
+
+def test_bad_hands_and_parameters():
+    _, objects, hands, _ = push_dataset(seed=2)
+    with pytest.raises(InvalidInputError, match="hand trajectories"):
+        PrimitiveDiscovery().fit(objects[:2], hands[:1])
+    with pytest.raises(InvalidInputError, match="frames"):
+        PrimitiveDiscovery().fit(objects[:1], [hands[0][:-1]])
+    with pytest.raises(InvalidInputError, match=r"\(T, 18\)"):
+        PrimitiveDiscovery().fit(objects[:1], [hands[0][:, :9]])
+    for params in ({"spacing": 0.0}, {"threshold": -1.0}, {"reg_covar": float("nan")}, {"hand_marker": 6}):
+        with pytest.raises(InvalidInputError, match=next(iter(params))):
+            PrimitiveDiscovery(**params).fit(objects[:1])
+
+
+def test_not_fitted():
+    with pytest.raises(NotFittedError):
+        PrimitiveDiscovery().predict([np.zeros((5, 6))])
+    with pytest.raises(NotFittedError):
+        PrimitiveDiscovery().save("unused.json")
+
+
+# ---------------------------------------------------------------------------------- persistence
+
+
+def test_save_load_round_trip(pushes, tmp_path):
+    _, objects, _, _, model = pushes
+    path = tmp_path / "discovery.json"
+    model.save(path)
+    assert json.loads(path.read_text())["format_version"] == 1
+    loaded = PrimitiveDiscovery.load(path)
+    assert loaded.get_params() == model.get_params()
+    assert loaded.primitives_ == model.primitives_ and loaded.segmentations_ == model.segmentations_
+    assert loaded.classes_ == model.classes_ and loaded.state_sequences_ == model.state_sequences_
+    np.testing.assert_array_equal(loaded.joint_covars_, model.joint_covars_)
+    for a, b in zip(loaded.predict(objects[:3]), model.predict(objects[:3])):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(DataExistsError):
+        model.save(path)
+    model.save(path, overwrite=True)
+
+
+def test_load_rejects_bad_files(tmp_path):
+    with pytest.raises(DataFileError, match="no model file"):
+        PrimitiveDiscovery.load(tmp_path / "missing.json")
+    (tmp_path / "garbage.json").write_text("{not json")
+    with pytest.raises(DataFileError, match="JSON"):
+        PrimitiveDiscovery.load(tmp_path / "garbage.json")
+    (tmp_path / "future.json").write_text(json.dumps({"kind": "PrimitiveDiscovery", "format_version": 99}))
+    with pytest.raises(DataFileError, match="format_version"):
+        PrimitiveDiscovery.load(tmp_path / "future.json")
+    (tmp_path / "partial.json").write_text(
+        json.dumps({"kind": "PrimitiveDiscovery", "format_version": 1, "params": {}})
+    )
+    with pytest.raises(DataFileError, match="corrupt"):
+        PrimitiveDiscovery.load(tmp_path / "partial.json")

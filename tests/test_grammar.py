@@ -1,0 +1,158 @@
+"""The action grammar: a probabilistic finite-state automaton over primitive classes."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.primitives.grammar import END, ActionGrammar
+
+DEMOS = [
+    ["approach", "push", "remove"],
+    ["approach", "push", "remove"],
+    ["approach", "move", "remove"],
+    ["approach", "rotate", "remove"],
+]
+
+
+@pytest.fixture
+def grammar():
+    return ActionGrammar().fit(DEMOS)
+
+
+def test_learns_approach_act_remove(grammar):
+    assert grammar.symbols_ == ["approach", "push", "remove", "move", "rotate"]
+    assert grammar.next_distribution() == {"approach": 1.0}
+    assert grammar.next_distribution(["approach"]) == {"push": 0.5, "move": 0.25, "rotate": 0.25}
+    for action in ("push", "move", "rotate"):
+        assert grammar.next_distribution(["approach", action]) == {"remove": 1.0}
+    assert grammar.next_distribution(["approach", "push", "remove"]) == {END: 1.0}
+
+
+def test_is_grammatical(grammar):
+    for action in ("push", "move", "rotate"):
+        assert grammar.is_grammatical(["approach", action, "remove"])
+    assert not grammar.is_grammatical(["remove", "approach"])
+    assert not grammar.is_grammatical(["approach", "push", "remove", "approach"])
+    assert not grammar.is_grammatical(["approach", "push"])  # push never ended a demonstration
+    assert not grammar.is_grammatical(["approach", "push", "move", "remove"])
+    assert not grammar.is_grammatical(["approach", "grasp", "remove"])  # unknown class
+    assert not grammar.is_grammatical([])
+
+
+def test_log_probability(grammar):
+    assert grammar.log_probability(["approach", "push", "remove"]) == pytest.approx(math.log(0.5))
+    assert grammar.log_probability(["approach", "move", "remove"]) == pytest.approx(math.log(0.25))
+    assert grammar.log_probability(["remove", "approach"]) == -math.inf
+    assert grammar.log_probability(["approach", "grasp", "remove"]) == -math.inf
+
+
+def test_smoothing_changes_probabilities_not_the_language():
+    grammar = ActionGrammar(smoothing=1.0).fit(DEMOS)
+    assert np.isfinite(grammar.log_probability(["remove", "approach"]))
+    assert not grammar.is_grammatical(["remove", "approach"])
+    after_approach = grammar.next_distribution(["approach"])
+    assert sum(after_approach.values()) == pytest.approx(1.0)
+    # counts 2, 1, 1 (+1 each) over 5 classes and the end: 3/10 for push
+    assert after_approach["push"] == pytest.approx(3 / 10) and after_approach["approach"] == pytest.approx(1 / 10)
+    assert END not in grammar.next_distribution()  # the empty sequence is never possible
+    assert all(grammar.is_grammatical(grammar.sample(seed)) for seed in range(50))
+
+
+def test_sample_gives_grammatical_sequences_with_the_learned_frequencies(grammar):
+    samples = [tuple(grammar.sample(np.random.default_rng(seed))) for seed in range(400)]
+    assert all(grammar.is_grammatical(s) for s in samples)
+    counts = Counter(s[1] for s in samples)
+    assert set(counts) == {"push", "move", "rotate"}
+    assert 0.4 < counts["push"] / 400 < 0.6
+    assert grammar.sample(5) == grammar.sample(5)
+
+
+def test_cycles_are_learned_and_sampled():
+    grammar = ActionGrammar().fit([[0, 1, 2], [0, 1, 1, 2]])
+    assert grammar.is_grammatical([0, 1, 1, 1, 2])
+    assert grammar.next_distribution([0, 1]) == {1: pytest.approx(1 / 3), 2: pytest.approx(2 / 3)}
+    assert all(grammar.is_grammatical(grammar.sample(seed)) for seed in range(30))
+
+
+def test_text_and_dot(grammar):
+    text = str(grammar)
+    assert "approach -> push (0.50) | move (0.25) | rotate (0.25)" in text
+    assert "<start> -> approach (1.00)" in text and "remove -> <end> (1.00)" in text
+    dot = grammar.to_dot()
+    assert dot.startswith("digraph ActionGrammar {") and dot.rstrip().endswith("}")
+    assert '"approach" -> "push" [label="0.50"];' in dot
+    assert '"remove" -> "<end>" [label="1.00"];' in dot
+    assert dot.count("->") == 8
+    assert "not fitted" in str(ActionGrammar())
+
+
+def test_integer_classes_and_numpy_ints():
+    grammar = ActionGrammar().fit([np.array([0, 3, 2]), [0, 4, 2]])
+    assert grammar.symbols_ == [0, 3, 2, 4] and all(type(s) is int for s in grammar.symbols_)
+    assert grammar.is_grammatical([np.int64(0), 3, 2])
+
+
+def test_save_load_round_trip(grammar, tmp_path):
+    path = tmp_path / "grammar.json"
+    grammar.save(path)
+    assert json.loads(path.read_text())["format_version"] == 1
+    loaded = ActionGrammar.load(path)
+    assert loaded.symbols_ == grammar.symbols_ and str(loaded) == str(grammar)
+    np.testing.assert_array_equal(loaded.transmat_, grammar.transmat_)
+    with pytest.raises(DataExistsError):
+        grammar.save(path)
+    ints = ActionGrammar(smoothing=0.5).fit([[0, 1, 2]])
+    ints.save(path, overwrite=True)
+    assert ActionGrammar.load(path).symbols_ == [0, 1, 2]
+    assert ActionGrammar.load(path).smoothing == 0.5
+
+
+def test_load_rejects_bad_files(tmp_path):
+    with pytest.raises(DataFileError, match="no grammar file"):
+        ActionGrammar.load(tmp_path / "missing.json")
+    (tmp_path / "bad.json").write_text("[1, 2")
+    with pytest.raises(DataFileError, match="JSON"):
+        ActionGrammar.load(tmp_path / "bad.json")
+    (tmp_path / "old.json").write_text(json.dumps({"kind": "ActionGrammar", "format_version": 0}))
+    with pytest.raises(DataFileError, match="format_version"):
+        ActionGrammar.load(tmp_path / "old.json")
+    (tmp_path / "short.json").write_text(
+        json.dumps({"kind": "ActionGrammar", "format_version": 1, "smoothing": 0, "symbols": ["a"], "counts": [[1]]})
+    )
+    with pytest.raises(DataFileError, match="corrupt"):
+        ActionGrammar.load(tmp_path / "short.json")
+
+
+@pytest.mark.parametrize(
+    "sequences, message",
+    [
+        ([], "empty"),
+        ([[]], "empty"),
+        ("approach", "string"),
+        (["approach push"], "string"),
+        ([[0.5, 1]], "int id or a str"),
+        ([[True]], "int id or a str"),
+        ([["<start>", "push"]], "reserved"),
+        (5, "list of class sequences"),
+    ],
+)
+def test_bad_sequences(sequences, message):
+    with pytest.raises(InvalidInputError, match=message):
+        ActionGrammar().fit(sequences)
+
+
+def test_bad_smoothing_prefix_and_not_fitted(grammar):
+    with pytest.raises(InvalidInputError, match="smoothing"):
+        ActionGrammar(smoothing=-1).fit(DEMOS)
+    with pytest.raises(InvalidInputError, match="unknown class"):
+        grammar.next_distribution(["grasp"])
+    for call in (lambda g: g.is_grammatical(["a"]), lambda g: g.sample(0), lambda g: g.to_dot()):
+        with pytest.raises(NotFittedError):
+            call(ActionGrammar())
+
