@@ -16,3 +16,26 @@ WORK_AREA_LOW = np.array([-0.05, -0.09])  # m, (x, y) corner of the area where p
 WORK_AREA_HIGH = np.array([0.05, 0.09])
 
 FLOOR_Z = -TABLE_HEIGHT
+
+
+# ==================== human demonstration scene <-> robot scene (envs/demo_scene.py) ====================
+# The human scene uses the same axis convention, origin on ITS table top at the centre of the paper's
+# 80 x 30 cm active region (x away from the demonstrator, y to their left, z up). As in the paper, marker
+# and object locations are rescaled to the robot: one uniform scale and one offset, nothing else,
+#     p_robot = HUMAN_TO_ROBOT_SCALE * p_human + HUMAN_TO_ROBOT_OFFSET.
+# The scale maps the active region's width onto the work area's width (0.80 m -> 0.18 m, so its depth
+# 0.30 m -> 0.0675 m fits the 0.10 m deep work area); the offset puts the region's centre on the work
+# area's centre, both table tops at z = 0.
+HUMAN_ACTIVE_REGION_SIZE = (0.30, 0.80)  # m, depth (x) and width (y) of the active region (paper: 80 x 30 cm)
+HUMAN_TO_ROBOT_SCALE = float((WORK_AREA_HIGH - WORK_AREA_LOW)[1] / HUMAN_ACTIVE_REGION_SIZE[1])
+HUMAN_TO_ROBOT_OFFSET = np.array([*((WORK_AREA_LOW + WORK_AREA_HIGH) / 2.0), 0.0])
+
+
+def human_to_robot(points: np.ndarray) -> np.ndarray:
+    """Human-scene points (..., 3) in metres to robot-scene points (..., 3)."""
+    return HUMAN_TO_ROBOT_SCALE * np.asarray(points, float) + HUMAN_TO_ROBOT_OFFSET
+
+
+def robot_to_human(points: np.ndarray) -> np.ndarray:
+    """Robot-scene points (..., 3) in metres to human-scene points (..., 3); inverse of :func:`human_to_robot`."""
+    return (np.asarray(points, float) - HUMAN_TO_ROBOT_OFFSET) / HUMAN_TO_ROBOT_SCALE

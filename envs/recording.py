@@ -1,0 +1,185 @@
+"""Record demonstration datasets: named presets of :class:`DemoTask` lists and :func:`record`.
+
+Presets (``PRESETS``):
+
+- ``paper``: the paper's action set: push and move left/right/forward/backward by 5, 10 and 15 cm,
+  and rotate (counter-)clockwise by 60 degrees, 4 repetitions each (104 episodes); block start
+  locations drawn uniformly over the 80 x 30 cm active region such that the block also ends inside it,
+  start yaw within +-5 degrees.
+- ``approach-grid``: the paper's synthesis experiment: approach -> remove (no manipulation) to the
+  block on a 2x2 grid (the region's corners), a 3x3 grid and the evenly spread 5x7 test grid, 4
+  repetitions at each location (192 episodes).
+- ``small``: one push, one move, one rotate and one approach, for tests (4 episodes, a few seconds).
+
+Same preset and seed -> the same dataset, array for array: every random draw comes from generators
+seeded by ``(seed, episode index)``, and each episode starts from the same restored PyBullet state.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from hoap_actions.envs.demo_scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
+from hoap_actions.envs.demonstrator import (
+    DIRECTIONS,
+    FPS,
+    MARKER_NAMES,
+    PHASE_NAMES,
+    TURNS,
+    Demonstrator,
+    DemoRecording,
+    DemoTask,
+)
+from hoap_actions.errors import DataExistsError, InvalidInputError
+from hoap_actions.primitives.datasets import Demonstrations, Episode, GroundTruth, write_demonstrations
+
+logger = logging.getLogger(__name__)
+
+DISTANCES = (0.05, 0.10, 0.15)  # m, push and move distances of the paper preset
+ROTATE_ANGLE = np.radians(60.0)
+REPETITIONS = 4
+GRIDS = {"2x2": (2, 2), "3x3": (3, 3), "5x7": (5, 7)}
+_YAW_SPREAD = np.radians(5.0)
+
+
+def _start_for(rng: np.random.Generator, step: np.ndarray) -> tuple[float, float]:
+    """A block start, uniform over the active region, from which ``step`` (m, x y) stays inside it."""
+    low = np.maximum(ACTIVE_REGION_LOW, ACTIVE_REGION_LOW - step)
+    high = np.minimum(ACTIVE_REGION_HIGH, ACTIVE_REGION_HIGH - step)
+    x, y = rng.uniform(low, high)
+    return float(x), float(y)
+
+
+def paper_tasks(rng: np.random.Generator) -> list[DemoTask]:
+    """The full action set (see the module docstring)."""
+    tasks = []
+    for action in ("push", "move"):
+        for direction, unit in DIRECTIONS.items():
+            for distance in DISTANCES:
+                for rep in range(REPETITIONS):
+                    xy = _start_for(rng, distance * np.array(unit))
+                    yaw = float(rng.uniform(-_YAW_SPREAD, _YAW_SPREAD))
+                    tasks.append(DemoTask(action, xy, yaw, direction, distance, repetition=rep))
+    for direction in TURNS:
+        for rep in range(REPETITIONS):
+            xy = _start_for(rng, np.zeros(2))
+            yaw = float(rng.uniform(-_YAW_SPREAD, _YAW_SPREAD))
+            tasks.append(DemoTask("rotate", xy, yaw, direction, angle=ROTATE_ANGLE, repetition=rep))
+    return tasks
+
+
+def approach_grid_tasks(rng: np.random.Generator) -> list[DemoTask]:
+    """Approach -> remove to every location of the 2x2, 3x3 and 5x7 grids, 4 times each."""
+    del rng  # the locations are fixed; variability comes from the motion itself
+    tasks = []
+    for name, (rows, cols) in GRIDS.items():
+        points = active_region_grid(rows, cols)
+        for index, xy in enumerate(points):
+            for rep in range(REPETITIONS):
+                tasks.append(
+                    DemoTask("approach", (float(xy[0]), float(xy[1])), repetition=rep, grid=name,
+                             grid_index=(index // cols, index % cols))
+                )
+    return tasks
+
+
+def small_tasks(rng: np.random.Generator) -> list[DemoTask]:
+    """One episode of each kind, for tests and quick looks."""
+    return [
+        DemoTask("push", _start_for(rng, np.array([0.0, 0.10])), direction="left", distance=0.10),
+        DemoTask("move", _start_for(rng, np.array([0.10, 0.0])), direction="forward", distance=0.10),
+        DemoTask("rotate", _start_for(rng, np.zeros(2)), direction="ccw", angle=ROTATE_ANGLE),
+        DemoTask("approach", (0.0, 0.0), grid="5x7", grid_index=(2, 3)),
+    ]
+
+
+PRESETS: dict[str, Callable[[np.random.Generator], list[DemoTask]]] = {
+    "paper": paper_tasks,
+    "approach-grid": approach_grid_tasks,
+    "small": small_tasks,
+}
+
+
+def preset_tasks(preset: str, seed: int = 0) -> list[DemoTask]:
+    """The episodes a preset records with ``seed`` (block starts are drawn from ``seed``)."""
+    if preset not in PRESETS:
+        raise InvalidInputError(f"unknown preset {preset!r}; choose one of {sorted(PRESETS)}")
+    return PRESETS[preset](np.random.default_rng([seed, 0]))
+
+
+def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) -> Episode:
+    truth = GroundTruth(
+        labels=recording.labels,
+        phase_names=PHASE_NAMES,
+        action=task.action,
+        direction=task.direction,
+        distance=float(task.distance),
+        angle=float(task.angle),
+        object_start=recording.O[0],
+        object_end=recording.O[-1],
+        object_target=recording.object_target,
+        hand_rest=recording.hand_rest,
+        repetition=task.repetition,
+        grid=task.grid,
+        grid_index=np.array(task.grid_index),
+    )
+    return Episode(H=recording.H, O=recording.O, ground_truth=truth, seed=(seed, index + 1))
+
+
+def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True) -> Path:
+    """Record every episode of ``preset`` and write them to the HDF5 file ``out`` (see
+    :mod:`hoap_actions.primitives.datasets`); returns ``out``. Refuses to replace an existing file
+    unless ``overwrite``; the progress bar shows only when stderr is a terminal."""
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise DataExistsError(f"{out} already exists; pass overwrite=True (--overwrite) to replace it")
+    tasks = preset_tasks(preset, seed)
+    scene = DemoScene()
+    try:
+        demonstrator = Demonstrator(scene)
+        episodes, table_contacts, missed_grasps = [], [], []
+        bar = tqdm(tasks, desc=f"recording {preset}", unit="episode", disable=not (progress and sys.stderr.isatty()))
+        for index, task in enumerate(bar):
+            recording = demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
+            episodes.append(_episode(task, recording, seed, index))
+            if recording.table_contact_frames:
+                table_contacts.append(index)
+            if task.action in ("move", "rotate") and not recording.grasped:
+                missed_grasps.append(index)
+        scene_parameters = scene.parameters()
+    finally:
+        scene.close()
+    demos = Demonstrations(
+        episodes=tuple(episodes),
+        fps=float(FPS),
+        marker_names=MARKER_NAMES,
+        phase_names=PHASE_NAMES,
+        seed=seed,
+        scene=scene_parameters,
+        generator={
+            "preset": preset,
+            "seed": seed,
+            "episodes": len(episodes),
+            "tasks": [_task_dict(t) for t in tasks],
+            # quality record: episodes in which the hand touched the table, or a grasp was not made
+            "table_contact_episodes": table_contacts,
+            "missed_grasp_episodes": missed_grasps,
+        },
+    )
+    logger.info("recorded %d episodes (%d frames) of preset %r", len(episodes), sum(e.T for e in episodes), preset)
+    return write_demonstrations(out, demos, overwrite=overwrite)
+
+
+def _task_dict(task: DemoTask) -> dict:
+    """A task as JSON-ready values (stored in the dataset's ``generator`` attribute)."""
+    return {
+        "action": task.action, "object_xy": list(task.object_xy), "object_yaw": task.object_yaw,
+        "direction": task.direction, "distance": task.distance, "angle": float(task.angle),
+        "repetition": task.repetition, "grid": task.grid, "grid_index": list(task.grid_index),
+    }

@@ -1,0 +1,319 @@
+"""Demonstration datasets: the documented HDF5 file format, its writer and its loader.
+
+Why HDF5 (h5py), not Minari: Minari is built around reinforcement-learning episodes (observations,
+actions, rewards, terminations) and pulls in extra dependencies; a demonstration here is marker and
+object trajectories with evaluation-only labels. HDF5 is self-describing (names, shapes, units as
+attributes), checksummed per chunk (Fletcher-32), and readable without this package (h5py, MATLAB,
+``h5dump``).
+
+File layout (``format_version`` 1)::
+
+    /                              attrs: format = "hoap-actions-demonstrations", format_version = 1,
+                                          fps (Hz), marker_names (6 str), phase_names (str table),
+                                          units = "m, rad, s", frame (str), rotation_convention (str),
+                                          seed (int), scene (JSON str), generator (JSON str), episodes (int)
+    /episode_00000/                attrs: seed (2 ints: the recording seed and the episode's index)
+        H        (T, 6, 3) float64   marker positions (m): shoulder, elbow, wrist, index fingertip,
+                                     index knuckle, thumb tip (root attr marker_names), scene frame
+        O        (T, 6)    float64   object pose: centre position (m) and rotation vector (rad)
+        ground_truth/              attrs: action, direction (str), distance (m), angle (rad),
+                                          repetition (int), grid (str, "" if none)
+            labels         (T,) int16   phase code per frame, an index into /phase_names
+            object_start   (6,)         object pose at the first frame
+            object_end     (6,)         object pose at the last frame
+            object_target  (6,)         the pose the action aimed at
+            hand_rest      (3,)         palm centre (m) at rest before the approach
+            grid_index     (2,) int     (row, column) in the grid, (-1, -1) if none
+    /episode_00001/ ...
+
+Rotation convention: ``O[:, 3:]`` is ``scipy.spatial.transform.Rotation.as_rotvec()`` of the object's
+orientation in the scene frame (axis times angle, |angle| <= pi), i.e. of the quaternion (x, y, z, w)
+PyBullet reports. Frames are sampled at ``fps``; ``T`` differs between episodes. The ``ground_truth``
+group is for evaluation only: learning code reads ``H`` and ``O`` (``Demonstrations.movement_data`` /
+``object_data``) and never needs it.
+
+Writing goes to a temporary file in the target directory that is renamed into place when complete,
+so an interrupted write never leaves a partial dataset under the final name.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from hoap_actions.errors import DataExistsError, DataFileError, HoapActionsError, InvalidInputError
+
+logger = logging.getLogger(__name__)
+
+FORMAT = "hoap-actions-demonstrations"
+FORMAT_VERSION = 1
+N_MARKERS = 6
+ROTATION_CONVENTION = (
+    "O[:, 3:] = scipy Rotation.as_rotvec() of the object orientation in the scene frame (rad, |angle| <= pi)"
+)
+FRAME = "scene frame: z up, origin on the table top at the centre of the active region, x away from the demonstrator"
+_ARRAY_OPTIONS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
+
+
+def _array(array: np.ndarray, dtype: type | str = np.float64) -> np.ndarray:
+    """A copy of ``array`` as ``dtype`` (left writable: scipy's Rotation refuses read-only buffers)."""
+    return np.array(array, dtype=dtype)
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """Evaluation-only truth of one episode: per-frame phase codes and the action's parameters.
+
+    ``labels`` (T,) indexes ``phase_names``; poses are (6,) position (m) + rotation vector (rad);
+    ``distance`` (m) is set for push/move, ``angle`` (rad) for rotate, ``grid``/``grid_index`` for
+    approach-grid episodes (``""`` / ``(-1, -1)`` otherwise).
+    """
+
+    labels: np.ndarray
+    phase_names: tuple[str, ...]
+    action: str
+    direction: str
+    distance: float
+    angle: float
+    object_start: np.ndarray
+    object_end: np.ndarray
+    object_target: np.ndarray
+    hand_rest: np.ndarray
+    repetition: int = 0
+    grid: str = ""
+    grid_index: np.ndarray = field(default_factory=lambda: np.array([-1, -1]))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "labels", _array(self.labels, np.int16))
+        object.__setattr__(self, "phase_names", tuple(self.phase_names))
+        for name in ("object_start", "object_end", "object_target", "hand_rest"):
+            object.__setattr__(self, name, _array(getattr(self, name)))
+        object.__setattr__(self, "grid_index", _array(self.grid_index, np.int64))
+
+    def phases(self) -> np.ndarray:
+        """Phase name per frame, (T,) str."""
+        return np.array(self.phase_names)[self.labels]
+
+    def segments(self) -> list[tuple[str, int, int]]:
+        """Runs of equal labels as ``(phase, first frame, end frame exclusive)``, in time order."""
+        cuts = np.flatnonzero(np.diff(self.labels)) + 1
+        bounds = np.concatenate([[0], cuts, [len(self.labels)]])
+        return [(self.phase_names[self.labels[a]], int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One demonstration: ``H`` (T, 6, 3) marker positions (m), ``O`` (T, 6) object pose (m, rad),
+    its evaluation-only ``ground_truth``, and the ``seed`` pair it was recorded with."""
+
+    H: np.ndarray
+    O: np.ndarray
+    ground_truth: GroundTruth
+    seed: tuple[int, int] = (0, 0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "H", _array(self.H))
+        object.__setattr__(self, "O", _array(self.O))
+        object.__setattr__(self, "seed", tuple(int(s) for s in self.seed))
+
+    @property
+    def T(self) -> int:
+        """Number of frames."""
+        return len(self.H)
+
+
+@dataclass(frozen=True)
+class Demonstrations(Sequence[Episode]):
+    """A recorded dataset: the episodes plus what is needed to interpret and reproduce them."""
+
+    episodes: tuple[Episode, ...]
+    fps: float
+    marker_names: tuple[str, ...]
+    phase_names: tuple[str, ...]
+    seed: int = 0
+    scene: dict = field(default_factory=dict)
+    generator: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.episodes)
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return self.episodes[index]
+
+    def __iter__(self) -> Iterator[Episode]:
+        return iter(self.episodes)
+
+    def movement_data(self) -> tuple[np.ndarray, np.ndarray]:
+        """Marker trajectories in the hmmlearn convention: ``X`` (sum T, 18) = H flattened per frame
+        (marker-major: shoulder x y z, elbow x y z, ...), and ``lengths`` (n_episodes,)."""
+        return np.concatenate([e.H.reshape(e.T, -1) for e in self.episodes]), self.lengths()
+
+    def object_data(self) -> tuple[np.ndarray, np.ndarray]:
+        """Object trajectories in the hmmlearn convention: ``X`` (sum T, 6) and ``lengths``."""
+        return np.concatenate([e.O for e in self.episodes]), self.lengths()
+
+    def lengths(self) -> np.ndarray:
+        return np.array([e.T for e in self.episodes], dtype=np.int64)
+
+
+# ---------------------------------------------------------------------------------------- writing
+def _check_episode(index: int, episode: Episode, n_phases: int) -> None:
+    where = f"episode {index}"
+    H, O, labels = episode.H, episode.O, episode.ground_truth.labels
+    if H.ndim != 3 or H.shape[1:] != (N_MARKERS, 3) or len(H) < 1:
+        raise InvalidInputError(f"{where}: H must have shape (T, {N_MARKERS}, 3) with T >= 1; got {H.shape}")
+    if O.shape != (len(H), 6):
+        raise InvalidInputError(f"{where}: O must have shape (T, 6) = ({len(H)}, 6); got {O.shape}")
+    if labels.shape != (len(H),):
+        raise InvalidInputError(f"{where}: labels must have shape (T,) = ({len(H)},); got {labels.shape}")
+    if not (np.all(np.isfinite(H)) and np.all(np.isfinite(O))):
+        raise InvalidInputError(f"{where}: H and O must be finite (no NaN or inf)")
+    if labels.min() < 0 or labels.max() >= n_phases:
+        raise InvalidInputError(f"{where}: labels must index phase_names (0..{n_phases - 1})")
+
+
+def write_demonstrations(path: Path | str, demos: Demonstrations, overwrite: bool = False) -> Path:
+    """Write ``demos`` to the HDF5 file ``path`` (layout in the module docstring); returns the path.
+
+    Raises :class:`DataExistsError` if ``path`` exists and not ``overwrite``, :class:`InvalidInputError`
+    for a malformed episode. The file appears under ``path`` only once completely written.
+    """
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise DataExistsError(f"{path} already exists; pass overwrite=True to replace it")
+    if len(demos.marker_names) != N_MARKERS:
+        raise InvalidInputError(f"expected {N_MARKERS} marker names; got {list(demos.marker_names)}")
+    if not demos.episodes:
+        raise InvalidInputError("there are no episodes to write")
+    for index, episode in enumerate(demos.episodes):
+        _check_episode(index, episode, len(demos.phase_names))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with h5py.File(tmp, "w", track_order=True) as f:
+            f.attrs.update(
+                format=FORMAT,
+                format_version=FORMAT_VERSION,
+                fps=float(demos.fps),
+                marker_names=list(demos.marker_names),
+                phase_names=list(demos.phase_names),
+                units="m, rad, s",
+                frame=FRAME,
+                rotation_convention=ROTATION_CONVENTION,
+                seed=int(demos.seed),
+                scene=json.dumps(demos.scene, sort_keys=True),
+                generator=json.dumps(demos.generator, sort_keys=True),
+                episodes=len(demos.episodes),
+            )
+            for index, episode in enumerate(demos.episodes):
+                _write_episode(f.create_group(f"episode_{index:05d}"), episode)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    logger.info("wrote %d episodes to %s", len(demos.episodes), path)
+    return path
+
+
+def _write_episode(group: h5py.Group, episode: Episode) -> None:
+    group.attrs["seed"] = np.array(episode.seed, dtype=np.int64)
+    group.create_dataset("H", data=episode.H, chunks=episode.H.shape, track_times=False, **_ARRAY_OPTIONS)
+    group.create_dataset("O", data=episode.O, chunks=episode.O.shape, track_times=False, **_ARRAY_OPTIONS)
+    truth = episode.ground_truth
+    gt = group.create_group("ground_truth")
+    gt.attrs.update(
+        action=truth.action,
+        direction=truth.direction,
+        distance=float(truth.distance),
+        angle=float(truth.angle),
+        repetition=int(truth.repetition),
+        grid=truth.grid,
+    )
+    gt.create_dataset("labels", data=truth.labels, chunks=truth.labels.shape, track_times=False, **_ARRAY_OPTIONS)
+    for name in ("object_start", "object_end", "object_target", "hand_rest", "grid_index"):
+        gt.create_dataset(name, data=getattr(truth, name), track_times=False, fletcher32=True)
+
+
+# ---------------------------------------------------------------------------------------- loading
+def load_demonstrations(path: Path | str) -> Demonstrations:
+    """Read a dataset written by :func:`write_demonstrations`.
+
+    Raises :class:`DataFileError` for a missing, truncated or corrupt file (checksums are verified),
+    another format or version, a missing array, wrong shapes, labels outside the phase table, or
+    NaN/inf values; the message names the file and the episode.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"no demonstrations file at {path}")
+    try:
+        with h5py.File(path, "r") as f:
+            return _read(f, path)
+    except HoapActionsError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
+        raise DataFileError(f"{path} is not a readable demonstrations file (truncated or corrupt?): {exc}") from exc
+
+
+def _read(f: h5py.File, path: Path) -> Demonstrations:
+    fmt = f.attrs.get("format")
+    if fmt != FORMAT:
+        raise DataFileError(f"{path}: format is {fmt!r}, expected {FORMAT!r}")
+    version = f.attrs.get("format_version")
+    version = version.item() if isinstance(version, np.generic) else version
+    if version != FORMAT_VERSION:
+        raise DataFileError(f"{path}: format_version {version!r} is not supported; this code reads {FORMAT_VERSION}")
+    marker_names = tuple(str(m) for m in f.attrs["marker_names"])
+    phase_names = tuple(str(p) for p in f.attrs["phase_names"])
+    if len(marker_names) != N_MARKERS:
+        raise DataFileError(f"{path}: expected {N_MARKERS} marker names, found {list(marker_names)}")
+    names = sorted(name for name in f if name.startswith("episode_"))
+    if len(names) != int(f.attrs["episodes"]):
+        raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(f.attrs['episodes'])}")
+    episodes = tuple(_read_episode(f[name], f"{path}:{name}", len(phase_names), phase_names) for name in names)
+    return Demonstrations(
+        episodes=episodes,
+        fps=float(f.attrs["fps"]),
+        marker_names=marker_names,
+        phase_names=phase_names,
+        seed=int(f.attrs["seed"]),
+        scene=json.loads(f.attrs["scene"]),
+        generator=json.loads(f.attrs["generator"]),
+    )
+
+
+def _read_episode(group: h5py.Group, where: str, n_phases: int, phase_names: tuple[str, ...]) -> Episode:
+    H, O = group["H"][()], group["O"][()]
+    gt = group["ground_truth"]
+    labels = gt["labels"][()]
+    if H.ndim != 3 or H.shape[1:] != (N_MARKERS, 3) or len(H) < 1:
+        raise DataFileError(f"{where}: H has shape {H.shape}, expected (T, {N_MARKERS}, 3) with T >= 1")
+    if O.shape != (len(H), 6):
+        raise DataFileError(f"{where}: O has shape {O.shape}, expected ({len(H)}, 6)")
+    if labels.shape != (len(H),):
+        raise DataFileError(f"{where}: labels have shape {labels.shape}, expected ({len(H)},)")
+    if not (np.all(np.isfinite(H)) and np.all(np.isfinite(O))):
+        raise DataFileError(f"{where}: H or O contains NaN or inf")
+    if labels.min() < 0 or labels.max() >= n_phases:
+        raise DataFileError(f"{where}: labels outside the phase table 0..{n_phases - 1}")
+    truth = GroundTruth(
+        labels=labels,
+        phase_names=phase_names,
+        action=str(gt.attrs["action"]),
+        direction=str(gt.attrs["direction"]),
+        distance=float(gt.attrs["distance"]),
+        angle=float(gt.attrs["angle"]),
+        object_start=gt["object_start"][()],
+        object_end=gt["object_end"][()],
+        object_target=gt["object_target"][()],
+        hand_rest=gt["hand_rest"][()],
+        repetition=int(gt.attrs["repetition"]),
+        grid=str(gt.attrs["grid"]),
+        grid_index=gt["grid_index"][()],
+    )
+    return Episode(H=H, O=O, ground_truth=truth, seed=tuple(group.attrs["seed"]))

@@ -1,0 +1,211 @@
+"""The demonstration file format: round trip, hmmlearn-style views, refusing to overwrite, atomic
+writes, and a clear error for every kind of bad file."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError
+from hoap_actions.primitives import datasets
+from hoap_actions.primitives.datasets import (
+    Demonstrations,
+    Episode,
+    GroundTruth,
+    load_demonstrations,
+    write_demonstrations,
+)
+
+PHASES = ("approach", "push-left", "remove")
+MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
+
+
+def make_episode(rng: np.random.Generator, T: int) -> Episode:
+    labels = np.repeat([0, 1, 2], [T // 3, T // 3, T - 2 * (T // 3)])
+    O = np.tile([0.0, 0.0, 0.025, 0.0, 0.0, 0.1], (T, 1)) + rng.normal(0.0, 0.01, (T, 6))
+    truth = GroundTruth(
+        labels=labels, phase_names=PHASES, action="push", direction="left", distance=0.1, angle=0.0,
+        object_start=O[0], object_end=O[-1], object_target=O[0] + [0.0, 0.1, 0, 0, 0, 0],
+        hand_rest=np.array([-0.3, -0.2, -0.3]), repetition=1,
+    )
+    return Episode(H=rng.normal(0.0, 0.3, (T, 6, 3)), O=O, ground_truth=truth, seed=(7, 1))
+
+
+@pytest.fixture
+def demos() -> Demonstrations:
+    rng = np.random.default_rng(0)
+    episodes = tuple(make_episode(rng, T) for T in (30, 45, 12))
+    return Demonstrations(
+        episodes=episodes, fps=100.0, marker_names=MARKERS, phase_names=PHASES, seed=7,
+        scene={"table": [0.6, 1.2]}, generator={"preset": "unit-test", "seed": 7},
+    )
+
+
+@pytest.fixture
+def written(tmp_path, demos):
+    return write_demonstrations(tmp_path / "demos.h5", demos)
+
+
+def test_round_trip_keeps_everything(written, demos):
+    loaded = load_demonstrations(written)
+    assert len(loaded) == len(demos) and loaded.fps == 100.0 and loaded.seed == 7
+    assert loaded.marker_names == MARKERS and loaded.phase_names == PHASES
+    assert loaded.scene == demos.scene and loaded.generator == demos.generator
+    for a, b in zip(loaded, demos):
+        assert np.array_equal(a.H, b.H) and np.array_equal(a.O, b.O) and a.seed == b.seed
+        ga, gb = a.ground_truth, b.ground_truth
+        assert np.array_equal(ga.labels, gb.labels)
+        assert (ga.action, ga.direction, ga.distance, ga.repetition, ga.grid) == ("push", "left", 0.1, 1, "")
+        for name in ("object_start", "object_end", "object_target", "hand_rest", "grid_index"):
+            assert np.array_equal(getattr(ga, name), getattr(gb, name))
+    assert list(loaded[0].ground_truth.phases()[:1]) == ["approach"]
+    assert [s[0] for s in loaded[0].ground_truth.segments()] == list(PHASES)
+
+
+def test_hmmlearn_views(written):
+    loaded = load_demonstrations(written)
+    X, lengths = loaded.movement_data()
+    assert X.shape == (30 + 45 + 12, 18) and lengths.tolist() == [30, 45, 12]
+    assert np.array_equal(X[:30], loaded[0].H.reshape(30, 18))
+    X, lengths = loaded.object_data()
+    assert X.shape == (87, 6) and lengths.sum() == len(X)
+
+
+def test_layout_is_readable_without_this_package(written):
+    with h5py.File(written, "r") as f:
+        assert f.attrs["format"] == "hoap-actions-demonstrations" and f.attrs["format_version"] == 1
+        assert list(f.attrs["marker_names"]) == list(MARKERS)
+        assert f["episode_00000/H"].shape == (30, 6, 3) and f["episode_00000/O"].shape == (30, 6)
+        assert f["episode_00000/ground_truth/labels"].shape == (30,)
+        assert "rotvec" in f.attrs["rotation_convention"]
+
+
+def test_refuses_to_overwrite(written, demos):
+    with pytest.raises(DataExistsError, match="overwrite"):
+        write_demonstrations(written, demos)
+    assert write_demonstrations(written, demos, overwrite=True) == written
+
+
+def test_interrupted_write_leaves_no_file(tmp_path, demos, monkeypatch):
+    calls = []
+
+    def failing(group, episode):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("disk on fire")
+        return real(group, episode)
+
+    real = datasets._write_episode
+    monkeypatch.setattr(datasets, "_write_episode", failing)
+    with pytest.raises(RuntimeError):
+        write_demonstrations(tmp_path / "half.h5", demos)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda e: Episode(e.H[:, :5], e.O, e.ground_truth),
+        lambda e: Episode(e.H, e.O[:-1], e.ground_truth),
+        lambda e: Episode(np.where(np.arange(e.T)[:, None, None] == 3, np.nan, e.H), e.O, e.ground_truth),
+    ],
+    ids=["markers", "length", "nan"],
+)
+def test_writer_rejects_bad_episodes(tmp_path, demos, change):
+    bad = Demonstrations((change(demos[0]),), 100.0, MARKERS, PHASES)
+    with pytest.raises(InvalidInputError):
+        write_demonstrations(tmp_path / "bad.h5", bad)
+    assert not (tmp_path / "bad.h5").exists()
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(DataFileError, match="no demonstrations file"):
+        load_demonstrations(tmp_path / "nothing.h5")
+
+
+def test_truncated_file(written):
+    data = written.read_bytes()
+    written.write_bytes(data[: len(data) // 2])
+    with pytest.raises(DataFileError, match="truncated or corrupt"):
+        load_demonstrations(written)
+
+
+def test_corrupt_bytes(written):
+    data = bytearray(written.read_bytes())
+    rng = np.random.default_rng(1)
+    start = len(data) // 4
+    data[start : len(data) - 64] = rng.integers(0, 256, len(data) - 64 - start, dtype=np.uint8).tobytes()
+    written.write_bytes(bytes(data))
+    with pytest.raises(DataFileError):
+        load_demonstrations(written)
+
+
+def test_flipped_data_bytes_fail_the_checksum(written):
+    with h5py.File(written, "r") as f:
+        offset = f["episode_00001/H"].id.get_chunk_info(0).byte_offset
+    data = bytearray(written.read_bytes())
+    data[offset + 10] ^= 0xFF
+    written.write_bytes(bytes(data))
+    with pytest.raises(DataFileError, match="corrupt"):
+        load_demonstrations(written)
+
+
+def test_not_hdf5(tmp_path):
+    path = tmp_path / "notes.h5"
+    path.write_text("these are not demonstrations")
+    with pytest.raises(DataFileError):
+        load_demonstrations(path)
+
+
+@pytest.mark.parametrize(
+    "attr, value, message",
+    [("format", "something-else", "format is"), ("format_version", 2, "format_version 2 is not supported")],
+)
+def test_wrong_format_or_version(written, attr, value, message):
+    with h5py.File(written, "r+") as f:
+        f.attrs[attr] = value
+    with pytest.raises(DataFileError, match=message):
+        load_demonstrations(written)
+
+
+def _replace(path, name, data):
+    with h5py.File(path, "r+") as f:
+        del f[name]
+        f.create_dataset(name, data=data)
+
+
+def test_nan_in_file(written):
+    with h5py.File(written, "r") as f:
+        H = f["episode_00000/H"][()]
+    H[5, 2, 1] = np.nan
+    _replace(written, "episode_00000/H", H)
+    with pytest.raises(DataFileError, match="NaN"):
+        load_demonstrations(written)
+
+
+@pytest.mark.parametrize(
+    "name, shape, message",
+    [
+        ("episode_00000/H", (30, 5, 3), "H has shape"),
+        ("episode_00000/O", (29, 6), "O has shape"),
+        ("episode_00000/ground_truth/labels", (31,), "labels have shape"),
+    ],
+)
+def test_wrong_shapes_in_file(written, name, shape, message):
+    _replace(written, name, np.zeros(shape, dtype=np.int16 if "labels" in name else float))
+    with pytest.raises(DataFileError, match=message):
+        load_demonstrations(written)
+
+
+def test_labels_outside_the_phase_table(written):
+    _replace(written, "episode_00002/ground_truth/labels", np.full(12, 9, dtype=np.int16))
+    with pytest.raises(DataFileError, match="phase table"):
+        load_demonstrations(written)
+
+
+def test_missing_array(written):
+    with h5py.File(written, "r+") as f:
+        del f["episode_00001/O"]
+    with pytest.raises(DataFileError, match="episode_00001|corrupt"):
+        load_demonstrations(written)
