@@ -7,7 +7,9 @@ Effect on Objects" of the 2010 paper (eqs. 1-3, Figs. 4, 5, 7):
    arc length (``spacing``); each piece becomes a Gaussian and the trajectory a left-right HMM;
 2. the HMMs are folded, one after the other, into one joint HMM: states whose Kullback-Leibler
    divergence (eq. 1) is below ``threshold`` are merged with eqs. (2)-(3), omega = 0.5;
-3. every trajectory is Viterbi-decoded with the joint HMM (:mod:`hoap_actions.primitives.hmm_math`);
+3. every trajectory is Viterbi-decoded with the joint HMM (densities from
+   :mod:`hoap_actions.primitives.hmm_math`; :func:`sparse_viterbi`, as the joint HMM's chains
+   allow few transitions per state);
 4. repetitions are dropped and the state strings are cut into common and unique substrings by
    longest common substring (Fig. 5), see :func:`find_primitives`;
 5. the segmentation is carried over to the arm-marker trajectories H_i: each primitive becomes an
@@ -18,7 +20,8 @@ Choices the paper leaves open, made here and why:
 * **Pose metric.** Arc length and rest detection use ``|dp| + rotation_radius * |dr|`` (metres): a
   rotation counts as the path of a point on the object's rim, so a pure rotation gets Gaussians too.
   ``reg_covar`` is likewise in m^2 and is ``reg_covar / rotation_radius**2`` rad^2 on the rotation
-  axes, so position and rotation have the same resolution.
+  axes, so position and rotation have the same resolution. By default it follows ``spacing``
+  (``spacing**2 / 48``), so ``spacing`` and ``threshold`` are the only scales of the method.
 * **Relative pose.** Position minus the initial position; rotation ``R_t R_0^-1`` as a rotation
   vector (the difference in the rotation group, equal to subtraction for rotations about one axis).
   The initial pose is the mean over the leading rest, so noise on frame 0 does not shift everything.
@@ -28,10 +31,15 @@ Choices the paper leaves open, made here and why:
   and a trailing rest; the object is at rest while each frame stays within ``spacing / 4`` (the
   resolution, :attr:`PrimitiveDiscovery.rest_tolerance`) of the mean of the frames before it (after
   it, for the trailing rest; a mean, so sensor noise on one reference frame cannot end a rest), and
-  the boundary is walked back (forward) to where the displacement starts to grow. Each rest is one
+  the boundary is walked back (forward) to where the displacement starts to grow, but not into
+  displacements below ``REST_FLOOR * rest_tolerance``: the micrometre creep of a settling object
+  (monotonic in noise-free simulation) is rest, not the start of a motion. Each rest is one
   Gaussian however long it lasts; the motion is cut every ``spacing`` of arc length (the last piece
   is 0.5 to 1.5 spacings), the arc length being measured with a dead band of ``rest_tolerance`` so
-  sensor jitter does not add up. Rest and motion states are never merged with each other.
+  sensor jitter does not add up. Rest and motion states are never merged with each other, and
+  Viterbi decodes rest frames with rest states and moving frames with motion states only: left
+  free, a broad motion Gaussian can swallow a trailing rest whose merged rest state sits a few mm
+  off (the demonstration then has no remove), or a rest state the first frames of a motion.
 * **Symmetric KL.** Eq. (1) is D_KL(Q||P); merging is symmetric in the two states, so the merge test
   uses ``(D_KL(Q||P) + D_KL(P||Q)) / 2`` (the log-determinant terms cancel). The result then does not
   depend on which state came from the joint HMM.
@@ -48,6 +56,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -69,6 +78,10 @@ N_MARKERS = 6
 HAND_DIM = 3 * N_MARKERS
 OMEGA = 0.5
 MIN_COMMON_LENGTH = 2
+DEFAULT_SPACING = 0.03  # m, tuned on the paper preset (benchmarks/discovery_sweep.py)
+DEFAULT_THRESHOLD = 3.0  # nats, ditto
+REST_FLOOR = 0.1  # fraction of the rest tolerance below which a displacement is creep, not motion
+DECODE_CELLS = 4_000_000  # frames x states decoded per batch: bounds the decoding's memory (~100 MB)
 APPROACH, MANIPULATION, REMOVE = "approach", "manipulation", "remove"
 UNKNOWN = -1
 
@@ -143,10 +156,8 @@ def longest_common_substring(a: Sequence[int], b: Sequence[int]) -> tuple[int, i
     return end_a - length + 1, end_b - length + 1, length
 
 
-def _longest_match(
-    x: np.ndarray, y: np.ndarray, groups_x: np.ndarray | None = None, groups_y: np.ndarray | None = None
-) -> tuple[int, int, int]:
-    """``(end_x, end_y, length)`` of the longest common substring, ignoring cells with equal groups.
+def _longest_match(x: np.ndarray, y: np.ndarray) -> tuple[int, int, int]:
+    """``(end_x, end_y, length)`` of the longest common substring.
 
     ``run[j]`` is the length of the common suffix of ``x[:i+1]`` and ``y[:j+1]``; each row is one
     vector operation on the previous row shifted by one.
@@ -157,10 +168,9 @@ def _longest_match(
         new = np.zeros_like(run)
         new[1:] = np.where(y == symbol, run[:-1] + 1, 0)
         run = new
-        candidates = run[1:] if groups_x is None else np.where(groups_y == groups_x[i], 0, run[1:])
-        j = int(np.argmax(candidates)) if len(candidates) else 0
-        if len(candidates) and candidates[j] > best[2]:
-            best = (i, j, int(candidates[j]))
+        j = int(np.argmax(run[1:])) if len(y) else 0
+        if len(y) and run[j + 1] > best[2]:
+            best = (i, j, int(run[j + 1]))
     return best
 
 
@@ -171,10 +181,10 @@ def find_primitives(
 
     Procedure, generalising the two-string example to many strings: keep every string as a list of
     pieces (initially one piece each). Repeatedly take the distinct pieces, find the longest
-    substring of length >= ``min_length`` common to two different ones (DP over their concatenation,
-    unique separators between pieces), and split every piece at every (non-overlapping, left to
-    right) occurrence of it. Stop when no two distinct pieces share such a substring; the distinct
-    pieces are then the primitives, each either common or unique to one string.
+    substring of length >= ``min_length`` common to two different ones (the first such in order of
+    appearance), and split every piece at every (non-overlapping, left to right) occurrence of it.
+    Stop when no two distinct pieces share such a substring; the distinct pieces are then the
+    primitives, each either common or unique to one string.
 
     Pieces found earlier are split again when a later, shorter common substring lies inside them;
     extracting only from the matched pair would make the push of Fig. 7 over the longest distance
@@ -199,18 +209,37 @@ def find_primitives(
 
 
 def _longest_common_piece(pieces: list[tuple[int, ...]]) -> tuple[int, ...]:
-    """Longest substring shared by two different pieces (empty tuple if none)."""
-    if len(pieces) < 2:
-        return ()
-    tokens, groups = [], []
+    """Longest substring shared by two different pieces (empty tuple if none); of those, the first in order.
+
+    A binary search on the length: a common substring of length n has common prefixes of every
+    shorter length, and each test hashes the O(total length) substrings of one length. The
+    pairwise dynamic programme it replaces was quadratic in the total length, every round.
+    """
+    low, high = 0, max((len(p) for p in pieces), default=0)
+    while low < high:
+        middle = (low + high + 1) // 2
+        if _first_shared(pieces, middle):
+            low = middle
+        else:
+            high = middle - 1
+    return _first_shared(pieces, low) if low else ()
+
+
+def _first_shared(pieces: list[tuple[int, ...]], n: int) -> tuple[int, ...]:
+    """The first (in piece order, then position) length-``n`` substring found in two different pieces, or ``()``."""
+    owner: dict[tuple[int, ...], int] = {}
+    shared = set()
     for k, piece in enumerate(pieces):
-        tokens.extend(piece)
-        groups.extend([k] * len(piece))
-        tokens.append(-(k + 1))  # a unique separator matches nothing
-        groups.append(k)
-    tokens_arr, groups_arr = np.asarray(tokens, int), np.asarray(groups, int)
-    end, _, length = _longest_match(tokens_arr, tokens_arr, groups_arr, groups_arr)
-    return tuple(int(t) for t in tokens_arr[end - length + 1 : end + 1])
+        for i in range(len(piece) - n + 1):
+            sub = piece[i : i + n]
+            if owner.setdefault(sub, k) != k:
+                shared.add(sub)
+    if shared:
+        for piece in pieces:
+            for i in range(len(piece) - n + 1):
+                if piece[i : i + n] in shared:
+                    return piece[i : i + n]
+    return ()
 
 
 def _split_at(piece: tuple[int, ...], sub: tuple[int, ...]) -> list[tuple[int, ...]]:
@@ -226,6 +255,78 @@ def _split_at(piece: tuple[int, ...], sub: tuple[int, ...]) -> list[tuple[int, .
     if start < len(piece):
         parts.append(piece[start:])
     return parts
+
+
+# ------------------------------------------------------------------------------ sparse Viterbi
+
+
+def sparse_viterbi(
+    log_startprob: np.ndarray, log_transmat: np.ndarray, log_frameprob: np.ndarray, lengths: Sequence[int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hmm_math.viterbi` for a sparse transition matrix: ``(best log-probability (S,), states (N,))``.
+
+    The joint HMM is a few hundred states in merged left-right chains, so each state has a handful
+    of predecessors; a dense step costs ``K^2`` per frame, this one the number of allowed
+    (finite) transitions. Sequences are sorted by length so the ones still running at time ``t``
+    are a prefix, and the frames are never padded. Ties go to the lowest state index, as in
+    :func:`hmm_math.viterbi`; an impossible sequence gets ``-inf`` and a meaningless path.
+    """
+    log_pi = np.asarray(log_startprob, float)
+    log_a = np.asarray(log_transmat, float)
+    logb = np.asarray(log_frameprob, float)
+    lengths = np.asarray(lengths, dtype=np.int64)
+    n_states = len(log_pi)
+    if log_a.shape != (n_states, n_states) or logb.ndim != 2 or logb.shape[1] != n_states:
+        raise InvalidInputError(
+            f"shapes disagree: startprob {log_pi.shape}, transmat {log_a.shape}, frameprob {logb.shape}"
+        )
+    if lengths.ndim != 1 or len(lengths) == 0 or np.any(lengths < 1) or lengths.sum() != len(logb):
+        raise InvalidInputError(f"lengths must be positive ints summing to the {len(logb)} frames; got {lengths}")
+    # edges sorted by destination, then source: the first best edge of a group is the lowest source
+    dst, src = np.nonzero(np.isfinite(log_a).T)
+    weight = log_a[src, dst]
+    group_start = np.flatnonzero(np.r_[True, dst[1:] != dst[:-1]]) if len(dst) else np.empty(0, int)
+    group_dst, group_size = dst[group_start], np.diff(np.r_[group_start, len(dst)])
+    edge_index = np.arange(len(dst))
+
+    order = np.argsort(-lengths, kind="stable")
+    starts = (np.cumsum(lengths) - lengths)[order]
+    sorted_lengths = lengths[order]
+    t_max = int(sorted_lengths[0])
+    active = np.searchsorted(-sorted_lengths, -np.arange(t_max + 1), side="left")  # sequences with length > t
+    back = np.zeros(logb.shape, dtype=np.int32)
+    delta = log_pi + logb[starts]
+    finals = np.empty((len(lengths), n_states))
+    ending = slice(active[1], active[0])
+    finals[ending] = delta[ending]
+    for t in range(1, t_max):
+        n = active[t]
+        new = np.full((n, n_states), -np.inf)
+        if len(dst):
+            cand = delta[:n, src] + weight
+            best = np.maximum.reduceat(cand, group_start, axis=1)
+            is_best = cand == np.repeat(best, group_size, axis=1)
+            first = np.minimum.reduceat(np.where(is_best, edge_index, len(dst)), group_start, axis=1)
+            new[:, group_dst] = best
+            back[(starts[:n] + t)[:, None], group_dst[None, :]] = src[first]
+        delta[:n] = new + logb[starts[:n] + t]
+        ending = slice(active[t + 1], n)
+        finals[ending] = delta[ending]
+    final_state = np.argmax(finals, axis=1)
+    best_logprob = finals[np.arange(len(lengths)), final_state]
+    path = np.empty(len(logb), dtype=np.intp)
+    state = final_state.copy()
+    for t in range(t_max - 1, -1, -1):
+        n = active[t]
+        ending = slice(active[t + 1], n)
+        state[ending] = final_state[ending]
+        frames = starts[:n] + t
+        path[frames] = state[:n]
+        if t:
+            state[:n] = back[frames, state[:n]]
+    result = np.empty(len(lengths))
+    result[order] = best_logprob
+    return result, path
 
 
 # ----------------------------------------------------------------------------------- learned values
@@ -282,16 +383,20 @@ class PrimitiveDiscovery:
     ----------
     spacing:
         Arc length (m, with rotations counted as ``rotation_radius * angle``) covered by one Gaussian
-        along the moving part of a trajectory. Also sets the rest tolerance, ``spacing / 4``.
+        along the moving part of a trajectory: the resolution of the quantisation. It also sets the
+        rest tolerance, ``spacing / 4``, and (by default) ``reg_covar``, so the result does not
+        change when the data and ``spacing`` are scaled together. Default 3 cm, tuned on the
+        ``paper`` preset (5-15 cm pushes and moves, 60 degree turns; benchmarks/discovery_sweep.py).
     threshold:
-        Merge two states when their symmetrised eq. (1) divergence (nats) is below this. Two pieces
-        of a uniform motion offset by ``f * spacing`` along it are about ``6 f^2`` apart, so the
-        default 2 merges pieces offset by less than ~0.6 spacing and keeps consecutive ones apart.
+        Merge two states when their symmetrised eq. (1) divergence (nats) is below this. With the
+        default ``reg_covar``, two pieces of a uniform motion offset by ``f * spacing`` along it are
+        ``4.8 f^2`` apart and two paths ``d * spacing`` apart across it ``24 d^2``, so the default 3
+        merges pieces offset by < 0.8 spacing along and < 0.35 spacing across the motion.
     reg_covar:
         Added to the diagonal of every piece covariance (m^2; ``/ rotation_radius**2`` rad^2 on the
         rotation axes): keeps covariances SPD and is the across-motion uncertainty of the
-        quantisation. The default (2 mm)^2 absorbs ~1 mm sensor noise and tells apart paths that
-        differ by more than ~5 mm; raise it for noisier data.
+        quantisation. ``None`` (default): ``spacing**2 / 48``, a standard deviation half the
+        along-path one of a piece (``spacing / sqrt(12)``), i.e. 4.3 mm at the default spacing.
     rotation_radius:
         Metres of arc per radian of object rotation (about the object's radius).
     hand_marker:
@@ -324,9 +429,9 @@ class PrimitiveDiscovery:
 
     def __init__(
         self,
-        spacing: float = 0.02,
-        threshold: float = 2.0,
-        reg_covar: float = 4e-6,
+        spacing: float = DEFAULT_SPACING,
+        threshold: float = DEFAULT_THRESHOLD,
+        reg_covar: float | None = None,
         rotation_radius: float = 0.05,
         hand_marker: int = 2,
         random_state: int | np.random.Generator | None = None,
@@ -345,6 +450,11 @@ class PrimitiveDiscovery:
         """Displacement (m) below which the object counts as at rest: ``spacing / 4``."""
         return self.spacing / 4.0
 
+    @property
+    def covariance_floor(self) -> float:
+        """The ``reg_covar`` in use (m^2): as given, or ``spacing**2 / 48`` when it is ``None``."""
+        return self.spacing**2 / 48.0 if self.reg_covar is None else self.reg_covar
+
     def get_params(self) -> dict:
         """Hyper-parameters as given to ``__init__``."""
         return {
@@ -359,6 +469,8 @@ class PrimitiveDiscovery:
     def _check_params(self) -> None:
         for name in ("spacing", "threshold", "reg_covar", "rotation_radius"):
             value = getattr(self, name)
+            if name == "reg_covar" and value is None:
+                continue
             if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and value > 0):
                 raise InvalidInputError(f"{name} must be a finite number > 0, got {value!r}")
         if not (isinstance(self.hand_marker, (int, np.integer)) and 0 <= self.hand_marker < N_MARKERS):
@@ -381,7 +493,7 @@ class PrimitiveDiscovery:
         arms = None if hands is None else _check_hands(hands, objects)
         relative, pieces = zip(*(self._prepare(o) for o in objects))
         self._build_joint_hmm(relative, pieces)
-        runs = self._decode(relative)
+        runs = self._decode(relative, pieces)
         self.state_sequences_ = [tuple(states) for states, _ in runs]
 
         middles, lead, trail = [], [], []
@@ -400,6 +512,11 @@ class PrimitiveDiscovery:
             len(self.joint_means_),
         )
         return self
+
+    def relative_trajectories(self, trajectories: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """Raw object poses ``(T_i, 6)`` as :meth:`fit` models them: relative to the initial rest pose (m, rad)."""
+        self._check_params()
+        return [self._prepare(o)[0] for o in _check_trajectories(trajectories, OBJECT_DIM, "trajectories")]
 
     def _prepare(self, poses: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]]:
         """The trajectory relative to its initial rest pose, and its pieces."""
@@ -432,7 +549,11 @@ class PrimitiveDiscovery:
 
     def _rest_length(self, rel: np.ndarray) -> int:
         """How many leading frames the object rests: up to the first frame farther than ``rest_tolerance``
-        from the mean of the frames before it, walked back to where the displacement starts to grow."""
+        from the mean of the frames before it, walked back to where the displacement starts to grow.
+
+        The walk back stops at displacements within ``REST_FLOOR * rest_tolerance`` of the rest: a
+        settling object creeps by micrometres, monotonically in noise-free data, and that is rest.
+        """
         n = len(rel)
         means = np.cumsum(rel, axis=0)[:-1] / np.arange(1, n)[:, None]  # mean of frames [0, t), t = 1..n-1
         exceed = np.flatnonzero(self._distance(rel[1:], means) > self.rest_tolerance)
@@ -440,23 +561,30 @@ class PrimitiveDiscovery:
             return n
         first_away = int(exceed[0]) + 1
         displacement = self._distance(rel[:first_away], means[first_away - 1])
+        floor = REST_FLOOR * self.rest_tolerance
         last_rest = first_away - 1
-        while last_rest > 0 and displacement[last_rest - 1] < displacement[last_rest]:
+        while last_rest > 0 and displacement[last_rest] > max(floor, displacement[last_rest - 1]):
             last_rest -= 1
         return last_rest + 1
 
     def _cut_motion(self, rel: np.ndarray, start: int, end: int) -> list[tuple[int, int, bool]]:
-        """Cut frames ``[start, end)`` every ``spacing`` of dead-banded arc length from frame ``start - 1``."""
+        """Cut frames ``[start, end)`` every ``spacing`` of dead-banded arc length from frame ``start - 1``.
+
+        The dead band makes the arc length sequential (the anchor moves only when a step exceeds the
+        tolerance), so it runs on Python floats: numpy calls on one frame at a time cost far more.
+        """
         if end <= start:
             return []
-        tol = self.rest_tolerance
+        tol, radius = self.rest_tolerance, self.rotation_radius
+        positions, rotations = rel[start - 1 : end, :3].tolist(), rel[start - 1 : end, 3:].tolist()
         progress = np.empty(end - start)
-        anchor, anchor_progress = rel[start - 1], 0.0
-        for k, pose in enumerate(rel[start:end]):
-            step = float(self._distance(pose, anchor))
+        anchor_p, anchor_r, anchor_progress = positions[0], rotations[0], 0.0
+        for k in range(end - start):
+            p, r = positions[k + 1], rotations[k + 1]
+            step = math.dist(p, anchor_p) + radius * math.dist(r, anchor_r)
             progress[k] = anchor_progress + step
             if step > tol:
-                anchor, anchor_progress = pose, progress[k]
+                anchor_p, anchor_r, anchor_progress = p, r, progress[k]
         progress = np.maximum.accumulate(progress)
         n_pieces = max(1, int(np.floor(progress[-1] / self.spacing + 0.5)))
         index = np.minimum(np.floor(progress / self.spacing).astype(int), n_pieces - 1)
@@ -466,7 +594,7 @@ class PrimitiveDiscovery:
 
     def _build_joint_hmm(self, relative: list[np.ndarray], pieces: list[list[tuple[int, int, bool]]]) -> None:
         """Fold the per-trajectory left-right HMMs into the joint HMM (paper's recursive merge)."""
-        reg = self.reg_covar * np.array([1.0, 1.0, 1.0] + [self.rotation_radius**-2] * 3)
+        reg = self.covariance_floor * np.array([1.0, 1.0, 1.0] + [self.rotation_radius**-2] * 3)
         means = np.empty((0, OBJECT_DIM))
         covs = np.empty((0, OBJECT_DIM, OBJECT_DIM))
         at_rest = np.empty(0, dtype=bool)
@@ -521,16 +649,42 @@ class PrimitiveDiscovery:
         keep = allowed[rows, cols]
         return rows[keep], cols[keep]
 
-    def _decode(self, relative: list[np.ndarray]) -> list[tuple[list[int], list[tuple[int, int]]]]:
-        """Viterbi paths as run-length encoded ``(states, frame ranges)``, repetitions removed."""
-        X = np.concatenate(relative)
-        lengths = np.array([len(r) for r in relative])
-        log_frameprob = hmm_math.log_gaussian_density(X, self.joint_means_, self.joint_covars_, "full")
+    def _decode(
+        self, relative: Sequence[np.ndarray], pieces: Sequence[list[tuple[int, int, bool]]]
+    ) -> list[tuple[list[int], list[tuple[int, int]]]]:
+        """Viterbi paths as run-length encoded ``(states, frame ranges)``, repetitions removed.
+
+        Rest frames (as cut) are decoded by rest states, moving frames by motion states (module
+        docstring), in batches of at most :data:`DECODE_CELLS` frame-state cells to bound the memory.
+        """
         with np.errstate(divide="ignore"):
             log_start, log_trans = np.log(self.startprob_), np.log(self.transmat_)
-        _, path = hmm_math.viterbi(log_start, log_trans, log_frameprob, lengths)
+        frames_per_batch = max(1, DECODE_CELLS // len(self.joint_means_))
+        batch_of = np.cumsum([len(r) for r in relative]) // frames_per_batch  # a long sequence may make its own
         runs = []
-        for seq_path in np.split(np.asarray(path, int), np.cumsum(lengths)[:-1]):
+        for batch in np.split(np.arange(len(relative)), np.flatnonzero(np.diff(batch_of)) + 1):
+            runs += self._decode_batch([relative[i] for i in batch], [pieces[i] for i in batch], log_start, log_trans)
+        return runs
+
+    def _decode_batch(
+        self,
+        relative: list[np.ndarray],
+        pieces: list[list[tuple[int, int, bool]]],
+        log_start: np.ndarray,
+        log_trans: np.ndarray,
+    ) -> list[tuple[list[int], list[tuple[int, int]]]]:
+        """:meth:`_decode` for one batch of sequences."""
+        X = np.concatenate(relative)
+        lengths = np.array([len(r) for r in relative])
+        at_rest = np.concatenate([np.repeat([r for _, _, r in cuts], [b - a for a, b, _ in cuts]) for cuts in pieces])
+        log_frameprob = hmm_math.log_gaussian_density(X, self.joint_means_, self.joint_covars_, "full")
+        masked = np.where(at_rest[:, None] == self.joint_at_rest_[None, :], log_frameprob, -np.inf)
+        best, path = sparse_viterbi(log_start, log_trans, masked, lengths)
+        if not np.isfinite(best).all():  # a kind of part the model never saw (e.g. motion, all demos still)
+            impossible = np.repeat(~np.isfinite(best), lengths)
+            path[impossible] = sparse_viterbi(log_start, log_trans, log_frameprob, lengths)[1][impossible]
+        runs = []
+        for seq_path in np.split(path, np.cumsum(lengths)[:-1]):
             change = np.flatnonzero(np.diff(seq_path)) + 1
             starts = np.concatenate([[0], change])
             ends = np.concatenate([change, [len(seq_path)]])
@@ -623,7 +777,8 @@ class PrimitiveDiscovery:
         """
         self._check_fitted()
         objects = _check_trajectories(trajectories, OBJECT_DIM, "trajectories")
-        runs = self._decode([self._prepare(o)[0] for o in objects])
+        relative, pieces = zip(*(self._prepare(o) for o in objects))
+        runs = self._decode(relative, pieces)
         ids = {kind: self.primitive_kinds_.index(kind) for kind in (APPROACH, REMOVE) if kind in self.primitive_kinds_}
         motion = [(p, pid) for pid, p in enumerate(self.primitives_) if self.primitive_kinds_[pid] == MANIPULATION]
         motion.sort(key=lambda item: -len(item[0]))

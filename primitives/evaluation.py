@@ -7,6 +7,11 @@ percentages of the action-segmentation literature):
 * :func:`hungarian_frame_accuracy`: unsupervised labels are arbitrary ids, so predicted labels are
   matched one-to-one to true ones (Hungarian method on the contingency table, over all
   demonstrations at once so one id means one thing everywhere) before counting correct frames;
+* :func:`many_to_one_frame_accuracy`: each predicted label is mapped to the true label it shares
+  most frames with (several predicted labels may map to one true label: a method that cuts one
+  true action into consecutive primitives, as the paper's Fig. 7 does, is not penalised for it,
+  but a predicted label spanning two true actions still is). Never below the one-to-one figure;
+  with as many predicted labels as frames it is 1, so read it beside the number of labels;
 * :func:`edit_score`: ``1 - Levenshtein / max length`` on the sequences of segment labels, which
   penalises over-segmentation and wrong order but not boundary shifts (Lea et al., 2016);
 * :func:`boundary_f1`: label-free; predicted label changes within ``tolerance_frames`` of a true
@@ -31,14 +36,19 @@ def hungarian_mapping(pred_labels: Labels, true_labels: Labels) -> dict[Hashable
 
     Predicted labels left over (more predicted than true labels) are absent from the map.
     """
-    pred, true = _paired(pred_labels, true_labels)
-    pred_all, true_all = np.concatenate(pred), np.concatenate(true)
-    pred_ids, pred_index = np.unique(pred_all, return_inverse=True)
-    true_ids, true_index = np.unique(true_all, return_inverse=True)
-    table = np.zeros((len(pred_ids), len(true_ids)), dtype=np.int64)
-    np.add.at(table, (pred_index.ravel(), true_index.ravel()), 1)
+    table, pred_ids, true_ids = _contingency(pred_labels, true_labels)
     rows, cols = linear_sum_assignment(table, maximize=True)
     return {pred_ids[r].item(): true_ids[c].item() for r, c in zip(rows, cols)}
+
+
+def _contingency(pred_labels: Labels, true_labels: Labels) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frames shared by each (predicted, true) label pair over all demos, with the sorted label ids."""
+    pred, true = _paired(pred_labels, true_labels)
+    pred_ids, pred_index = np.unique(np.concatenate(pred), return_inverse=True)
+    true_ids, true_index = np.unique(np.concatenate(true), return_inverse=True)
+    table = np.zeros((len(pred_ids), len(true_ids)), dtype=np.int64)
+    np.add.at(table, (pred_index.ravel(), true_index.ravel()), 1)
+    return table, pred_ids, true_ids
 
 
 def hungarian_frame_accuracy(pred_labels: Labels, true_labels: Labels) -> float:
@@ -48,6 +58,30 @@ def hungarian_frame_accuracy(pred_labels: Labels, true_labels: Labels) -> float:
     pred_all, true_all = np.concatenate(pred), np.concatenate(true)
     hits = sum(int(np.sum((pred_all == p) & (true_all == t))) for p, t in mapping.items())
     return hits / len(true_all)
+
+
+def many_to_one_mapping(pred_labels: Labels, true_labels: Labels) -> dict[Hashable, Hashable]:
+    """Map every predicted label to the true label it shares most frames with, over all demos.
+
+    Ties go to the true label that sorts first.
+    """
+    table, pred_ids, true_ids = _contingency(pred_labels, true_labels)
+    return {p.item(): true_ids[int(np.argmax(row))].item() for p, row in zip(pred_ids, table)}
+
+
+def many_to_one_frame_accuracy(pred_labels: Labels, true_labels: Labels) -> float:
+    """Fraction of frames whose predicted label, after :func:`many_to_one_mapping`, equals the true one."""
+    table, _, _ = _contingency(pred_labels, true_labels)
+    return float(table.max(axis=1).sum() / table.sum())
+
+
+def relabel(labels: Labels, mapping: dict[Hashable, Hashable], unmatched: Hashable = -1) -> list[np.ndarray]:
+    """Per-frame labels passed through ``mapping`` (labels it lacks become ``unmatched``), one array per demo.
+
+    Mapping frames before cutting segments lets :func:`edit_score` and :func:`boundary_f1` judge
+    the mapped segmentation: consecutive primitives mapped to one action make one segment.
+    """
+    return [np.array([mapping.get(x, unmatched) for x in seq.tolist()]) for seq in _as_list(labels, "labels")]
 
 
 def edit_score(pred_labels: Labels, true_labels: Labels, mapping: dict | None = None) -> float:

@@ -9,15 +9,18 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.primitives import hmm_math
 from hoap_actions.primitives.discovery import (
     APPROACH,
     MANIPULATION,
     REMOVE,
+    UNKNOWN,
     PrimitiveDiscovery,
     find_primitives,
     gaussian_kl,
     longest_common_substring,
     merge_gaussians,
+    sparse_viterbi,
     symmetric_kl_matrix,
 )
 from hoap_actions.primitives.evaluation import boundary_f1
@@ -26,6 +29,7 @@ from hoap_actions.primitives.grammar import ActionGrammar
 DIRECTIONS = {"right": (1.0, 0.0), "left": (-1.0, 0.0), "up": (0.0, 1.0), "down": (0.0, -1.0)}
 DISTANCES = (0.04, 0.08, 0.12)  # 2, 4 and 6 spacings of 2 cm: the Fig. 7 P1 / P1 P2 / P1 P2 P3 case
 PARK = np.array([-0.25, 0.0, 0.25])
+TWO_CM = {"spacing": 0.02, "threshold": 2.0}  # the synthetic pushes' geometry is laid out in 2-cm pieces
 
 
 def minimum_jerk(n: int) -> np.ndarray:
@@ -66,7 +70,7 @@ def push_dataset(seed=0, noise=0.0, repeats=1):
 @pytest.fixture(scope="module")
 def pushes():
     keys, objects, hands, labels = push_dataset(seed=1, noise=3e-4, repeats=2)
-    model = PrimitiveDiscovery(random_state=0).fit(objects, hands)
+    model = PrimitiveDiscovery(**TWO_CM, random_state=0).fit(objects, hands)
     return keys, objects, hands, labels, model
 
 
@@ -181,6 +185,52 @@ def test_primitives_tile_every_sequence():
             assert [s for k in lab for s in primitives[k]] == seq
 
 
+def test_longest_common_piece_is_the_first_longest_shared_by_two_pieces():
+    # (1, 2) and (3, 4) are both shared and longest: the first in order wins; repeats inside one piece do not count
+    assert find_primitives([[5, 1, 2, 3, 4], [3, 4, 6, 1, 2]])[0] == [(5,), (1, 2), (3, 4), (6,)]
+    assert find_primitives([[1, 2, 1, 2], [3]]) == ([(1, 2, 1, 2), (3,)], [[0], [1]])
+
+
+# ------------------------------------------------------------------------------ sparse Viterbi
+
+
+def random_sparse_hmm(rng, k, n_frames):
+    """A left-right-like HMM with random extra jumps and forbidden entries, and random frame scores."""
+    transmat = rng.random((k, k)) * (rng.random((k, k)) < 0.4)
+    transmat[np.arange(k), np.arange(k)] += 0.2
+    transmat /= transmat.sum(axis=1, keepdims=True)
+    startprob = rng.random(k) * (rng.random(k) < 0.6)
+    startprob[0] += 0.1
+    with np.errstate(divide="ignore"):
+        return np.log(startprob / startprob.sum()), np.log(transmat), rng.normal(size=(n_frames, k))
+
+
+def test_sparse_viterbi_matches_the_dense_one():
+    rng = np.random.default_rng(11)
+    for trial in range(150):
+        lengths = rng.integers(1, 15, size=rng.integers(1, 6))
+        log_start, log_trans, log_frameprob = random_sparse_hmm(rng, int(rng.integers(1, 9)), int(lengths.sum()))
+        if trial % 3 == 0:
+            log_frameprob = np.round(log_frameprob)  # ties: both go to the lowest state index
+        best, path = sparse_viterbi(log_start, log_trans, log_frameprob, lengths)
+        dense_best, dense_path = hmm_math.viterbi(log_start, log_trans, log_frameprob, lengths)
+        np.testing.assert_allclose(best, dense_best)
+        np.testing.assert_array_equal(path, dense_path)
+
+
+def test_sparse_viterbi_impossible_sequence_and_bad_input():
+    with np.errstate(divide="ignore"):
+        log_start = np.log([1.0, 0.0])
+        log_trans = np.log(np.eye(2))  # state 0 never reaches state 1
+        log_frameprob = np.log([[1.0, 0.0], [0.0, 1.0]])  # the second frame fits state 1 only
+    best, _ = sparse_viterbi(log_start, log_trans, log_frameprob, [2])
+    assert best[0] == -np.inf
+    with pytest.raises(InvalidInputError, match="shapes"):
+        sparse_viterbi(np.zeros(2), np.zeros((3, 3)), np.zeros((4, 2)), [4])
+    with pytest.raises(InvalidInputError, match="lengths"):
+        sparse_viterbi(np.zeros(2), np.zeros((2, 2)), np.zeros((4, 2)), [3])
+
+
 # ------------------------------------------------------------------------- discovery on pushes
 
 
@@ -247,8 +297,8 @@ def test_predict_reproduces_the_training_segmentation(pushes):
 
 def test_same_seed_same_result():
     _, objects, hands, _ = push_dataset(seed=7, noise=3e-4)
-    a = PrimitiveDiscovery(random_state=3).fit(objects, hands)
-    b = PrimitiveDiscovery(random_state=3).fit(objects, hands)
+    a = PrimitiveDiscovery(**TWO_CM, random_state=3).fit(objects, hands)
+    b = PrimitiveDiscovery(**TWO_CM, random_state=3).fit(objects, hands)
     assert a.primitives_ == b.primitives_ and a.segmentations_ == b.segmentations_ and a.classes_ == b.classes_
     np.testing.assert_array_equal(a.joint_means_, b.joint_means_)
     np.testing.assert_array_equal(a.transmat_, b.transmat_)
@@ -270,7 +320,7 @@ def test_rotation_gets_gaussians_and_is_relative_to_the_initial_pose():
     for yaw0 in (0.0, 1.0, -2.0):
         yaw = np.concatenate([np.full(20, yaw0), yaw0 + np.pi / 2 * t, np.full(20, yaw0 + np.pi / 2)])
         demos.append(np.hstack([np.tile([0.1, -0.05, 0.02], (len(yaw), 1)), np.zeros((len(yaw), 2)), yaw[:, None]]))
-    model = PrimitiveDiscovery().fit(demos)
+    model = PrimitiveDiscovery(**TWO_CM).fit(demos)
     assert model.primitive_kinds_ == [APPROACH, MANIPULATION, REMOVE]
     assert len(model.primitives_[1]) == 4  # pi/2 rad * 5 cm = 7.9 cm of arc: four 2-cm Gaussians
     assert len(set(model.state_sequences_)) == 1  # the same rotation from any initial yaw
@@ -279,7 +329,7 @@ def test_rotation_gets_gaussians_and_is_relative_to_the_initial_pose():
 def test_grammar_of_discovered_primitives():
     """Discovery's class sequences feed the grammar: every demonstration is grammatical."""
     _, objects, hands, _ = push_dataset(seed=3)
-    model = PrimitiveDiscovery().fit(objects, hands)
+    model = PrimitiveDiscovery(**TWO_CM).fit(objects, hands)
     sequences = [[pid for pid, *_ in segments] for segments in model.segmentations_]
     grammar = ActionGrammar().fit(sequences)
     assert all(grammar.is_grammatical(seq) for seq in sequences)
@@ -289,12 +339,53 @@ def test_grammar_of_discovered_primitives():
     assert not grammar.is_grammatical([remove, approach])
 
 
+def test_rest_and_motion_frames_decode_to_rest_and_motion_states(pushes):
+    """Approach and remove are exactly the rest pieces of the cut: Viterbi may not move them."""
+    _, objects, _, _, model = pushes
+    for obj, segments in zip(objects, model.segmentations_):
+        _, cuts = model._prepare(obj)
+        assert segments[0][2] == cuts[0][1] and segments[-1][1] == cuts[-1][0]
+        assert model.primitive_kinds_[segments[0][0]] == APPROACH and model.primitive_kinds_[segments[-1][0]] == REMOVE
+
+
+def test_rest_ends_where_the_push_starts_though_the_object_creeps_before():
+    """A settling object creeps by micrometres, monotonically in noise-free data (as the simulator's
+    block does); the rest must end at the hand's contact, not where the creep began."""
+    n_rest, n_push = 60, 40
+    settle = np.minimum(np.arange(n_rest), 3) * 7e-6 - np.linspace(0.0, 1e-6, n_rest)  # 20 um, then 1 um back
+    y = np.concatenate([settle, settle[-1] + 0.002 * np.arange(1, n_push + 1), np.full(40, settle[-1] + 0.08)])
+    poses = np.zeros((len(y), 6))
+    poses[:, 1], poses[:, 2] = y, 0.025
+    model = PrimitiveDiscovery(**TWO_CM).fit([poses])
+    assert abs(model.segmentations_[0][0][2] - n_rest) <= 1
+    assert abs(model.segmentations_[0][-1][1] - (n_rest + n_push)) <= 1
+
+
+def test_results_do_not_change_when_data_and_spacing_scale_together(pushes):
+    """With the default reg_covar (spacing^2 / 48) the method's only length scales are spacing and threshold."""
+    _, objects, hands, _, model = pushes
+    scale = 3.0
+    scaled = [np.hstack([o[:, :3] * scale, o[:, 3:]]) for o in objects]
+    big = PrimitiveDiscovery(spacing=0.02 * scale, threshold=2.0, rotation_radius=0.05 * scale).fit(scaled, hands)
+    assert big.primitives_ == model.primitives_ and big.segmentations_ == model.segmentations_
+    assert model.covariance_floor == pytest.approx(0.02**2 / 48)
+    assert PrimitiveDiscovery(reg_covar=1e-6).covariance_floor == 1e-6
+
+
+def test_predict_on_a_motion_no_demonstration_showed():
+    """A model of still objects has no motion states: the masked decoding is impossible and falls back."""
+    _, objects, _, _ = push_dataset(seed=2)
+    model = PrimitiveDiscovery(**TWO_CM).fit([np.tile(objects[0][:1], (30, 1))])
+    (labels,) = model.predict([objects[0]])
+    assert set(labels.tolist()) <= {0, UNKNOWN} and labels[0] == 0
+
+
 # ------------------------------------------------------------------------------ documented edges
 
 
 def test_single_demonstration_is_approach_one_manipulation_remove():
     _, objects, hands, _ = push_dataset(seed=2)
-    model = PrimitiveDiscovery().fit(objects[2:3], hands[2:3])
+    model = PrimitiveDiscovery(**TWO_CM).fit(objects[2:3], hands[2:3])
     assert model.primitive_kinds_ == [APPROACH, MANIPULATION, REMOVE]
     assert len(model.primitives_[1]) == 6  # 12 cm: nothing to compare with, so one primitive
     assert [pid for pid, *_ in model.segmentations_[0]] == [0, 1, 2]
@@ -345,7 +436,8 @@ def test_bad_hands_and_parameters():
         PrimitiveDiscovery().fit(objects[:1], [hands[0][:-1]])
     with pytest.raises(InvalidInputError, match=r"\(T, 18\)"):
         PrimitiveDiscovery().fit(objects[:1], [hands[0][:, :9]])
-    for params in ({"spacing": 0.0}, {"threshold": -1.0}, {"reg_covar": float("nan")}, {"hand_marker": 6}):
+    for params in ({"spacing": 0.0}, {"threshold": -1.0}, {"reg_covar": float("nan")}, {"hand_marker": 6},
+                   {"spacing": "2 cm"}):
         with pytest.raises(InvalidInputError, match=next(iter(params))):
             PrimitiveDiscovery(**params).fit(objects[:1])
 
@@ -365,6 +457,7 @@ def test_save_load_round_trip(pushes, tmp_path):
     path = tmp_path / "discovery.json"
     model.save(path)
     assert json.loads(path.read_text())["format_version"] == 1
+    assert json.loads(path.read_text())["params"]["reg_covar"] is None
     loaded = PrimitiveDiscovery.load(path)
     assert loaded.get_params() == model.get_params()
     assert loaded.primitives_ == model.primitives_ and loaded.segmentations_ == model.segmentations_

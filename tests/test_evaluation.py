@@ -14,6 +14,9 @@ from hoap_actions.primitives.evaluation import (
     hungarian_frame_accuracy,
     hungarian_mapping,
     levenshtein,
+    many_to_one_frame_accuracy,
+    many_to_one_mapping,
+    relabel,
 )
 
 TRUE = [np.array([0, 0, 0, 1, 1, 2, 2, 2]), np.array([0, 0, 1, 1, 1, 1, 2, 2])]
@@ -48,6 +51,31 @@ def test_more_predicted_than_true_labels_leaves_some_unmatched():
     assert len(hungarian_mapping(pred, true)) == 2
     assert hungarian_frame_accuracy(pred, true) == pytest.approx(4 / 6)
     assert edit_score(pred, true, hungarian_mapping(pred, true)) == pytest.approx(1 - 1 / 3)
+
+
+def test_many_to_one_maps_consecutive_primitives_of_one_action_to_it():
+    # the Fig. 7 case: one push cut into P1 P2 P3 (ids 1, 2, 3); id 4 straddles push and remove
+    pred = [np.array([0, 0, 1, 2, 3, 4, 4, 4]), np.array([0, 1, 2, 4, 4])]
+    true = [np.array([0, 0, 7, 7, 7, 7, 9, 9]), np.array([0, 7, 7, 9, 9])]
+    assert many_to_one_mapping(pred, true) == {0: 0, 1: 7, 2: 7, 3: 7, 4: 9}
+    assert many_to_one_frame_accuracy(pred, true) == pytest.approx(12 / 13)
+    assert hungarian_frame_accuracy(pred, true) == pytest.approx(9 / 13)  # one of P1 P2 P3 only
+    mapped = relabel(pred, many_to_one_mapping(pred, true))
+    np.testing.assert_array_equal(mapped[0], [0, 0, 7, 7, 7, 9, 9, 9])
+    assert edit_score(mapped, true) == 1.0  # P1 P2 P3 became one push segment
+    assert boundary_f1(mapped, true, tolerance_frames=1) == 1.0
+
+
+def test_many_to_one_is_never_below_one_to_one():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        true = [rng.integers(0, 4, size=rng.integers(1, 30)) for _ in range(3)]
+        pred = [rng.integers(0, 6, size=len(t)) for t in true]
+        assert many_to_one_frame_accuracy(pred, true) >= hungarian_frame_accuracy(pred, true) - 1e-12
+
+
+def test_relabel_marks_unmapped_labels():
+    np.testing.assert_array_equal(relabel(np.array([1, 2, 3]), {1: 5, 3: 6})[0], [5, -1, 6])
 
 
 def test_edit_score_known_answers():
@@ -107,7 +135,7 @@ def test_boundary_f1_without_boundaries():
     ],
 )
 def test_bad_input(pred, true, message):
-    for metric in (hungarian_frame_accuracy, edit_score, lambda p, t: boundary_f1(p, t, 1)):
+    for metric in (hungarian_frame_accuracy, many_to_one_frame_accuracy, edit_score, lambda p, t: boundary_f1(p, t, 1)):
         with pytest.raises(InvalidInputError, match=message):
             metric(pred, true)
 
