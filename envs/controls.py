@@ -52,7 +52,7 @@ class JointDeltaController:
         self.robot.set_targets(self._target)
 
 
-MAX_HAND_STEP = 0.008  # m per action and axis (30 Hz): 0.24 m/s, within the hand reference's 0.25 m/s
+MAX_HAND_STEP = 0.005  # m per action and axis (30 Hz): 0.15 m/s, the hand reference's speed limit
 HAND_BOX_LOW = np.array([world.WORK_AREA_LOW[0] - 0.04, world.WORK_AREA_LOW[1] - 0.05, 0.015])
 HAND_BOX_HIGH = np.array([world.WORK_AREA_HIGH[0] + 0.04, world.WORK_AREA_HIGH[1] + 0.05, 0.16])
 """World box (m) the desired hand position is held in: the work area with room for the holes at its
@@ -64,8 +64,8 @@ class EEDeltaController:
 
     ``action[:3]`` adds up to :data:`MAX_HAND_STEP` (8 mm) per axis to the desired world position,
     held inside :data:`HAND_BOX_LOW`..:data:`HAND_BOX_HIGH` (``last_clipped`` says when it was held).
-    ``action[3] > 0`` closes the gripper fully (squeezing a peg with the servo's full torque),
-    ``<= 0`` opens it. Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the
+    ``action[3]`` is the gripper closure ``clip(a, 0, 1)``: ``<= 0`` open, 1 fully closed (squeezing a
+    held peg with the servo's full torque), values between partly closed (0.75 touches a 15 mm peg). Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the
     desired position under velocity / acceleration / jerk limits and the whole-body IK turns it into
     joint targets for all 28 joints, feet planted, centre of mass inside the support polygon.
     ``hand`` exposes the IK status (``hand.last``) and whether the target proved unreachable.
@@ -89,7 +89,7 @@ class EEDeltaController:
         self.desired = np.clip(wanted, HAND_BOX_LOW, HAND_BOX_HIGH)
         self.last_clipped = bool(np.any(self.desired != wanted))
         self.hand.set_target(self.desired)
-        self.robot.set_gripper("right", 1.0 if action[3] > 0.0 else 0.0)
+        self.robot.set_gripper("right", float(np.clip(action[3], 0.0, 1.0)))
 
     def tick(self) -> None:
         """One physics period: retimer step, IK step, joint targets."""

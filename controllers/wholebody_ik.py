@@ -1,0 +1,374 @@
+"""Whole-body inverse kinematics (placo): standing on both feet, reaching with the right hand.
+
+One :meth:`WholeBodyIK.solve` is one QP step (tens of microseconds), meant to run once per 240 Hz
+physics tick on a target that moves a few millimetres per tick (see ``hand_control.py``):
+
+- feet: hard frame tasks, fixed where the soles stood at :meth:`WholeBodyIK.reset`;
+- centre of mass: hard constraint keeping its divergent component (CoM + velocity / omega) inside
+  the support polygon (the soles' convex hull, clockwise, as placo wants it) shrunk by a margin,
+  plus a soft xy task towards the polygon's centre;
+- hand (``r_tcp``): soft position task, and a soft axis-alignment task keeping the tcp's z axis
+  (the axis of a held peg) vertical, so an upright peg fits between palm and thumb;
+- posture: weak joint task towards the home posture, so the redundancy resolves the same way;
+- joint position and velocity limits from the URDF.
+
+Base synchronisation: placo's floating base is set from PyBullet's pelvis pose once per episode (in
+:meth:`reset`), then moves only by the solver, pinned by the hard feet tasks to the soles' world
+poses. While the soles do not slip, that base equals PyBullet's up to servo tracking error; copying
+PyBullet's base every tick would feed that error back into the command and fight the feet tasks.
+
+Failures never raise: a QP error or a non-finite solution restores the last good posture and is
+reported as :attr:`IKStatus.SOLVER_FAILED`; a hand left further than ``tolerance`` from its target
+is :attr:`IKStatus.TARGET_UNREACHED`.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import placo
+from numpy.typing import ArrayLike
+from scipy.spatial import ConvexHull
+from scipy.spatial.transform import Rotation
+
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.urdf import urdf_path
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["IKResult", "IKStatus", "Probe", "WholeBodyIK", "polygon_distance"]
+
+SOLE_HALF = (0.054, 0.0365)  # m, half length and width of the 108 x 73 mm HOAP-3 sole
+FEET = ("r_sole", "l_sole")
+HAND = "r_tcp"
+PELVIS = "pelvis"
+FROZEN = ("head_pan", "head_tilt", "head_roll", "r_gripper", "l_gripper")
+"""Joints the IK leaves where they are: they move no task frame (the grippers are commanded apart)."""
+COM_HEIGHT = 0.3  # m, the standing robot's CoM over its soles (for the DCM's natural frequency)
+HELD = ("l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow", "l_wrist_yaw")
+"""The idle left arm: it follows the posture, it does not act as a counterweight."""
+POSTURE_RATE = 0.5  # rad/s at which the posture target moves from the reset posture to the rest posture
+COM_RATE = 0.02  # m/s at which the CoM target moves to the polygon's centre and the margin grows
+TILT_RATE = 0.5  # rad/s at which the hand's tilt target goes from its reset tilt to level
+
+
+class IKStatus(enum.IntEnum):
+    """How a solve ended; an ``IntEnum`` so it can sit in an observation or ``info`` as a number."""
+
+    OK = 0
+    TARGET_UNREACHED = 1
+    SOLVER_FAILED = 2
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A reachability query's outcome: the hand error left (m) and the hand's rotation (3, 3) there."""
+
+    error: float
+    rotation: np.ndarray
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """One solve: joint targets ``q`` (n,) in the caller's joint order (rad), the status, and the
+    distance (m) from the IK model's hand to its target after the step."""
+
+    q: np.ndarray
+    status: IKStatus
+    hand_error: float
+
+
+class WholeBodyIK:
+    """placo whole-body IK for the HOAP-3 model, in the joint order ``joint_names`` of the caller.
+
+    Args:
+        joint_names: the caller's joint order (e.g. ``Robot.joint_names``); every name must be a
+            revolute joint of the URDF.
+        home_posture: (n,) posture the regularisation pulls towards (rad).
+        dt: period of :meth:`solve` calls (s); with the URDF's velocity limits it bounds each step.
+        urdf: model file; defaults to the packaged ``hoap3.urdf``.
+        hand_weight: soft weight of the hand position task (per m^2 of error).
+        axis_weight: soft weight of the peg-axis-vertical task (per rad^2): low, so that where the
+            arm cannot reach with a level forearm the hand tilts rather than misses.
+        posture_weight: soft weight of the posture task (per rad^2).
+        pelvis_weight: soft weight keeping the pelvis level (per rad^2).
+        pelvis_x_weight, pelvis_y_weight: soft weights holding the pelvis over its reset position (per m^2).
+        com_weight: soft weight of the CoM xy task towards the support polygon's centre (per m^2).
+        com_margin: how far inside the support polygon the CoM must stay (m).
+        tolerance: hand error (m) above which a solve reports ``TARGET_UNREACHED``.
+        frozen: joints the solver must not move (fewer free variables, a faster QP).
+        held, held_weight: joints kept near their posture by a stronger soft task (per rad^2).
+    """
+
+    def __init__(
+        self,
+        joint_names: Sequence[str],
+        home_posture: ArrayLike,
+        dt: float = 1.0 / 240.0,
+        urdf: str | Path | None = None,
+        hand_weight: float = 1e4,
+        axis_weight: float = 1.0,
+        posture_weight: float = 1e-3,
+        pelvis_weight: float = 1e2,
+        pelvis_x_weight: float = 1e3,
+        pelvis_y_weight: float = 1e3,
+        com_weight: float = 1e2,
+        com_margin: float = 0.03,
+        tolerance: float = 3e-3,
+        frozen: Sequence[str] = FROZEN,
+        held: Sequence[str] = HELD,
+        held_weight: float = 1.0,
+    ) -> None:
+        self.joint_names = tuple(joint_names)
+        home = np.asarray(home_posture, dtype=float)
+        if home.shape != (len(self.joint_names),) or not np.all(np.isfinite(home)):
+            raise InvalidInputError(
+                f"home_posture must be finite with shape ({len(self.joint_names)},), one angle per joint; got {home.shape}"
+            )
+        self.home_posture = home
+        self.dt = float(dt)
+        self.com_margin = float(com_margin)
+        self.tolerance = float(tolerance)
+        self.robot = placo.RobotWrapper(str(urdf or urdf_path("hoap3.urdf")), placo.Flags.ignore_collisions)
+        known = set(self.robot.joint_names())
+        missing = [n for n in self.joint_names if n not in known]
+        if missing:
+            raise InvalidInputError(f"joints {missing} are not in the IK model; its joints: {sorted(known)}")
+        self._q_index = np.array([self.robot.get_joint_offset(n) for n in self.joint_names])
+
+        solver = self.solver = placo.KinematicsSolver(self.robot)
+        solver.dt = self.dt
+        solver.enable_joint_limits(True)
+        solver.enable_velocity_limits(True)
+        for name in frozen:
+            solver.mask_dof(name)
+        self._feet = []
+        for frame in FEET:
+            task = solver.add_frame_task(frame, np.eye(4))
+            task.configure(frame, "hard", 1.0, 1.0)
+            self._feet.append(task)
+        self._polygon = solver.add_com_polygon_constraint([np.zeros(2)] * 3, self.com_margin)
+        self._polygon.configure("support_polygon", "hard", 1.0)
+        # The divergent component of motion (CoM + CoM velocity / omega), not just the CoM, must stay
+        # inside: this also bounds how fast the commanded CoM may head for the polygon's edge.
+        self._polygon.dcm = True
+        self._polygon.omega = float(np.sqrt(9.81 / COM_HEIGHT))
+        self._com = solver.add_com_task(np.zeros(3))
+        self._com.mask.set_axises("xy")
+        self._com.configure("com_xy", "soft", float(com_weight))
+        self._hand = solver.add_position_task(HAND, np.zeros(3))
+        self._hand.configure("hand", "soft", float(hand_weight))
+        # Tilt only: the orientation target is re-levelled at the hand's current heading each solve
+        # and the world-z error is masked, so the heading stays free. (placo's axis-align task
+        # returns NaN when the axis is exactly aligned, as at the home posture.)
+        self._tilt = solver.add_orientation_task(HAND, np.eye(3))
+        self._tilt.mask.set_axises("xy", "task")
+        self._tilt.configure("hand_tilt", "soft", float(axis_weight))
+        self._pelvis = solver.add_orientation_task(PELVIS, np.eye(3))
+        self._pelvis.configure("pelvis_level", "soft", float(pelvis_weight))
+        # The pelvis stays over its reset position: 2 cm behind the table edge, and shifting it
+        # sideways to reach swings the trunk enough to topple the robot (measured); it may rise and
+        # sink (the legs lower and raise the shoulders).
+        self._pelvis_x = solver.add_position_task(PELVIS, np.zeros(3))
+        self._pelvis_x.mask.set_axises("x")
+        self._pelvis_x.configure("pelvis_x", "soft", float(pelvis_x_weight))
+        self._pelvis_y = solver.add_position_task(PELVIS, np.zeros(3))
+        self._pelvis_y.mask.set_axises("y")
+        self._pelvis_y.configure("pelvis_y", "soft", float(pelvis_y_weight))
+        self._posture = solver.add_joints_task()
+        self._posture.configure("posture", "soft", float(posture_weight))
+        # Joints held firmly at their posture (the idle arm): left free, the IK swings them as
+        # counterweights, into the table and the pegs.
+        self._held = [self.joint_names.index(n) for n in held]
+        self._held_task = solver.add_joints_task()
+        self._held_task.configure("held", "soft", float(held_weight))
+        self._good_q = self.robot.state.q.copy()
+        self.polygon = np.zeros((0, 2))
+        self._posture_target = home.copy()
+        self._com_target = np.zeros(2)
+        self._com_goal = np.zeros(2)
+        self._margin = self.com_margin
+        self._tilt_rotvec = np.zeros(3)
+        self._tilt_rotation = np.eye(3)
+        self._settled = True
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q: ArrayLike, base_position: ArrayLike, base_quaternion: ArrayLike) -> None:
+        """Take the robot's measured state: joints ``q`` (n,), pelvis position (3,) and quaternion
+        (x, y, z, w); the feet tasks, support polygon and hand target start from it."""
+        q = np.asarray(q, dtype=float)
+        robot = self.robot
+        state_q = robot.state.q.copy()
+        state_q[self._q_index] = q
+        robot.state.q = state_q
+        robot.state.qd = np.zeros_like(robot.state.qd)
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_quat(np.asarray(base_quaternion, dtype=float)).as_matrix()
+        T[:3, 3] = np.asarray(base_position, dtype=float)
+        robot.set_T_world_fbase(T)
+        robot.update_kinematics()
+        corners = []
+        for frame, task in zip(FEET, self._feet):
+            T_sole = robot.get_T_world_frame(frame)
+            task.T_world_frame = T_sole
+            for sx in (1.0, -1.0):
+                for sy in (1.0, -1.0):
+                    corners.append((T_sole @ np.array([sx * SOLE_HALF[0], sy * SOLE_HALF[1], 0.0, 1.0]))[:2])
+        corners = np.array(corners)
+        self.polygon = corners[ConvexHull(corners).vertices[::-1]]  # scipy gives counter-clockwise
+        self._polygon.polygon = [p for p in self.polygon]
+        self._hand.target_world = robot.get_T_world_frame(HAND)[:3, 3]
+        T_pelvis = robot.get_T_world_frame(PELVIS)
+        self._pelvis.R_world_frame = T_pelvis[:3, :3]
+        self._pelvis_x.target_world = T_pelvis[:3, 3]
+        self._pelvis_y.target_world = T_pelvis[:3, 3]
+        # Posture, CoM and margin start where the robot is and move to their goals at bounded rates
+        # (see _settle): jumping to them at once would swing the body at full joint speed.
+        self._posture_target = q.copy()
+        com = robot.com_world()[:2]
+        self._com_target, self._com_goal = com.copy(), self.polygon.mean(axis=0)
+        self._margin = float(np.clip(polygon_distance(com, self.polygon) - 0.002, 0.0, self.com_margin))
+        T_hand = robot.get_T_world_frame(HAND)
+        self._tilt_rotvec = Rotation.from_matrix(_heading(T_hand).T @ T_hand[:3, :3]).as_rotvec()
+        self._tilt_rotation = _rodrigues(self._tilt_rotvec)
+        self._settled = False
+        self._settle()
+        self._good_q = robot.state.q.copy()
+
+    def _settle(self) -> None:
+        """Move the posture, CoM-target and margin one tick towards their goals (no-op once there)."""
+        if self._settled:
+            return
+        dt = self.dt
+        self._posture_target += np.clip(self.home_posture - self._posture_target, -POSTURE_RATE * dt, POSTURE_RATE * dt)
+        self._com_target += np.clip(self._com_goal - self._com_target, -COM_RATE * dt, COM_RATE * dt)
+        self._margin = min(self.com_margin, self._margin + COM_RATE * dt)
+        angle = float(np.linalg.norm(self._tilt_rotvec))
+        if angle > 0.0:
+            self._tilt_rotvec *= max(0.0, angle - TILT_RATE * dt) / angle
+            self._tilt_rotation = _rodrigues(self._tilt_rotvec)
+        self._set_posture_targets()
+        self._com.target_world = np.r_[self._com_target, 0.0]
+        self._polygon.margin = self._margin
+        self._settled = bool(
+            np.array_equal(self._posture_target, self.home_posture)
+            and np.array_equal(self._com_target, self._com_goal)
+            and self._margin == self.com_margin
+            and angle == 0.0
+        )
+
+    def _set_posture_targets(self) -> None:
+        target = self._posture_target.tolist()
+        self._posture.set_joints(dict(zip(self.joint_names, target)))
+        self._held_task.set_joints({self.joint_names[i]: target[i] for i in self._held})
+
+    @property
+    def q(self) -> np.ndarray:
+        """The IK model's current joint angles (n,) in the caller's order (rad)."""
+        return self.robot.state.q[self._q_index]
+
+    def hand_position(self) -> np.ndarray:
+        """The IK model's hand (tcp) position (3,) in the world (m)."""
+        return self.robot.get_T_world_frame(HAND)[:3, 3]
+
+    def com(self) -> np.ndarray:
+        """The IK model's centre of mass (3,) in the world (m)."""
+        return self.robot.com_world()
+
+    def probe(self, hand_target: ArrayLike, iterations: int = 200, step: float = 1e-3) -> Probe:
+        """Where the hand ends up when its target moves in a straight line to ``hand_target`` by
+        ``step`` (m) per solve, followed by up to ``iterations`` solves on it. The IK state is
+        restored afterwards, so this is a pure reachability query. (Jumping to a far target at once
+        can leave the QP in a worse local optimum than the streamed path the controller takes.)"""
+        saved_q = self.robot.state.q.copy()
+        saved = [
+            np.copy(value) for value in (
+                self._hand.target_world, self._posture_target, self._com_target, self._margin,
+                self._tilt_rotvec, self._tilt_rotation, self._settled,
+            )
+        ]
+        goal = np.asarray(hand_target, dtype=float)
+        start = self.hand_position()
+        n_path = int(np.ceil(np.linalg.norm(goal - start) / step))
+        for k in range(1, n_path):
+            self.solve(start + (goal - start) * (k / n_path))
+        error = np.inf
+        for _ in range(iterations):
+            result = self.solve(goal)
+            if result.status == IKStatus.SOLVER_FAILED or abs(error - result.hand_error) < 1e-7:
+                break
+            error = result.hand_error
+        rotation = self.robot.get_T_world_frame(HAND)[:3, :3].copy()
+        hand, self._posture_target, self._com_target, margin, self._tilt_rotvec, self._tilt_rotation, settled = saved
+        self._hand.target_world = hand
+        self._margin, self._settled = float(margin), bool(settled)
+        self._set_posture_targets()
+        self._com.target_world = np.r_[self._com_target, 0.0]
+        self._polygon.margin = self._margin
+        self.robot.state.q = saved_q
+        self.robot.state.qd = np.zeros_like(self.robot.state.qd)
+        self.robot.update_kinematics()
+        self._good_q = saved_q.copy()
+        return Probe(float(error), rotation)
+
+    # ------------------------------------------------------------------ solving
+    def solve(self, hand_target: ArrayLike) -> IKResult:
+        """One QP step towards ``hand_target`` (3,) (m, world); never raises on an infeasible target."""
+        target = np.asarray(hand_target, dtype=float)
+        self._hand.target_world = target
+        robot = self.robot
+        self._settle()
+        try:
+            robot.update_kinematics()
+            self._tilt.R_world_frame = _heading(robot.get_T_world_frame(HAND)) @ self._tilt_rotation
+            self.solver.solve(True)
+            robot.update_kinematics()
+            q = robot.state.q
+            if not np.all(np.isfinite(q)):
+                raise FloatingPointError("non-finite IK solution")
+        except (RuntimeError, FloatingPointError) as error:
+            logger.debug("IK step failed (%s); holding the last good posture", error)
+            robot.state.q = self._good_q.copy()
+            robot.state.qd = np.zeros_like(robot.state.qd)
+            robot.update_kinematics()
+            error_m = float(np.linalg.norm(self.hand_position() - target))
+            return IKResult(self.q, IKStatus.SOLVER_FAILED, error_m)
+        self._good_q = q.copy()
+        error_m = float(np.linalg.norm(robot.get_T_world_frame(HAND)[:3, 3] - target))
+        status = IKStatus.OK if error_m <= self.tolerance else IKStatus.TARGET_UNREACHED
+        return IKResult(q[self._q_index], status, error_m)
+
+
+def _heading(T: np.ndarray) -> np.ndarray:
+    """The level rotation with the same heading as the x axis of ``T`` (the forearm direction)."""
+    c, s = T[0, 0], T[1, 0]
+    norm = np.hypot(c, s)
+    if norm < 1e-9:  # forearm vertical: any heading will do
+        return np.eye(3)
+    c, s = c / norm, s / norm
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rodrigues(rotvec: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (cheaper than scipy for one small rotation per tick)."""
+    angle = float(np.linalg.norm(rotvec))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = rotvec / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+def polygon_distance(point: np.ndarray, polygon: np.ndarray) -> float:
+    """Signed distance (m) from a 2-D point to the edges of a clockwise convex polygon, > 0 inside."""
+    a = polygon
+    b = np.roll(polygon, -1, axis=0)
+    edge = b - a
+    # for a clockwise polygon the interior is on the right of each edge: cross(edge, p - a) < 0
+    cross = edge[:, 0] * (point[1] - a[:, 1]) - edge[:, 1] * (point[0] - a[:, 0])
+    return float(np.min(-cross / np.linalg.norm(edge, axis=1)))
