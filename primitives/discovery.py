@@ -54,21 +54,20 @@ Choices the paper leaves open, made here and why:
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
 from hoap_actions.primitives import hmm_math
+from hoap_actions.primitives.json_files import read_json_model, write_json_model
 
 logger = logging.getLogger(__name__)
 
@@ -805,12 +804,7 @@ class PrimitiveDiscovery:
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
         """Write the fitted model as JSON (``format_version`` = :data:`FORMAT_VERSION`)."""
         self._check_fitted()
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise DataExistsError(f"{path} exists; pass overwrite=True to replace it")
-        document = {
-            "format_version": FORMAT_VERSION,
-            "kind": "PrimitiveDiscovery",
+        body = {
             "params": {k: v.item() if isinstance(v, np.generic) else v for k, v in self.get_params().items()},
             "joint_means": self.joint_means_.tolist(),
             "joint_covars": self.joint_covars_.tolist(),
@@ -833,24 +827,12 @@ class PrimitiveDiscovery:
                 for c in self.classes_
             ],
         }
-        path.write_text(json.dumps(document))
+        write_json_model(path, "PrimitiveDiscovery", FORMAT_VERSION, body, overwrite)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PrimitiveDiscovery:
         """Read a model written by :meth:`save`."""
-        path = Path(path)
-        try:
-            document = json.loads(path.read_text())
-        except FileNotFoundError as exc:
-            raise DataFileError(f"no model file at {path}") from exc
-        except (OSError, ValueError) as exc:
-            raise DataFileError(f"{path} is not a readable JSON model file: {exc}") from exc
-        if not isinstance(document, dict) or document.get("kind") != "PrimitiveDiscovery":
-            raise DataFileError(f"{path} is not a PrimitiveDiscovery model file")
-        if document.get("format_version") != FORMAT_VERSION:
-            raise DataFileError(
-                f"{path} has format_version {document.get('format_version')!r}; supported: {FORMAT_VERSION}"
-            )
+        document = read_json_model(path, "PrimitiveDiscovery", FORMAT_VERSION)
         try:
             model = cls(**document["params"])
             model.joint_means_ = np.array(document["joint_means"], float).reshape(-1, OBJECT_DIM)

@@ -12,14 +12,13 @@ and :meth:`sample` use only those. Smoothing changes probabilities only (:meth:`
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Hashable, Sequence
-from pathlib import Path
 
 import numpy as np
 
-from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.primitives.json_files import read_json_model, write_json_model
 
 FORMAT_VERSION = 1
 START, END = "<start>", "<end>"
@@ -184,35 +183,18 @@ class ActionGrammar:
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
         """Write the grammar as JSON (``format_version`` = :data:`FORMAT_VERSION`)."""
         self._check_fitted()
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise DataExistsError(f"{path} exists; pass overwrite=True to replace it")
-        document = {
-            "format_version": FORMAT_VERSION,
-            "kind": "ActionGrammar",
+        body = {
             "smoothing": self.smoothing,
             "symbols": self.symbols_,
             "counts": self.counts_.tolist(),
             "n_sequences": self.n_sequences_,
         }
-        path.write_text(json.dumps(document, indent=1))
+        write_json_model(path, "ActionGrammar", FORMAT_VERSION, body, overwrite)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ActionGrammar:
         """Read a grammar written by :meth:`save`."""
-        path = Path(path)
-        try:
-            document = json.loads(path.read_text())
-        except FileNotFoundError as exc:
-            raise DataFileError(f"no grammar file at {path}") from exc
-        except (OSError, ValueError) as exc:
-            raise DataFileError(f"{path} is not a readable JSON grammar file: {exc}") from exc
-        if not isinstance(document, dict) or document.get("kind") != "ActionGrammar":
-            raise DataFileError(f"{path} is not an ActionGrammar file")
-        if document.get("format_version") != FORMAT_VERSION:
-            raise DataFileError(
-                f"{path} has format_version {document.get('format_version')!r}; supported: {FORMAT_VERSION}"
-            )
+        document = read_json_model(path, "ActionGrammar", FORMAT_VERSION)
         try:
             grammar = cls(smoothing=float(document["smoothing"]))
             grammar.symbols_ = [_clean_symbol(s) for s in document["symbols"]]

@@ -471,7 +471,7 @@ def test_save_load_round_trip(pushes, tmp_path):
 
 
 def test_load_rejects_bad_files(tmp_path):
-    with pytest.raises(DataFileError, match="no model file"):
+    with pytest.raises(DataFileError, match="no PrimitiveDiscovery file"):
         PrimitiveDiscovery.load(tmp_path / "missing.json")
     (tmp_path / "garbage.json").write_text("{not json")
     with pytest.raises(DataFileError, match="JSON"):

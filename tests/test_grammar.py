@@ -114,7 +114,7 @@ def test_save_load_round_trip(grammar, tmp_path):
 
 
 def test_load_rejects_bad_files(tmp_path):
-    with pytest.raises(DataFileError, match="no grammar file"):
+    with pytest.raises(DataFileError, match="no ActionGrammar file"):
         ActionGrammar.load(tmp_path / "missing.json")
     (tmp_path / "bad.json").write_text("[1, 2")
     with pytest.raises(DataFileError, match="JSON"):

@@ -1,0 +1,46 @@
+"""Versioned JSON model files: one place that writes them safely and reads them with clear errors.
+
+Every file is a JSON object with ``"kind"`` (which class wrote it) and ``"format_version"``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from hoap_actions.errors import DataExistsError, DataFileError
+
+
+def write_json_model(path: str | os.PathLike, kind: str, version: int, body: dict[str, Any], overwrite: bool) -> Path:
+    """Write ``body`` under ``kind``/``version``; refuse to replace a file unless ``overwrite``.
+
+    The text goes to a temporary file first and is renamed, so an interrupted write never leaves a
+    half-written model under the final name.
+    """
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise DataExistsError(f"{path} exists; pass overwrite=True to replace it")
+    document = {"format_version": version, "kind": kind, **body}
+    temporary = path.with_name(path.name + ".partial")
+    temporary.write_text(json.dumps(document, indent=1))
+    os.replace(temporary, path)
+    return path
+
+
+def read_json_model(path: str | os.PathLike, kind: str, version: int) -> dict[str, Any]:
+    """The document of a file written by :func:`write_json_model` for ``kind`` at ``version``."""
+    path = Path(path)
+    label = f"{kind} file"
+    try:
+        document = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise DataFileError(f"no {label} at {path}") from exc
+    except (OSError, ValueError) as exc:
+        raise DataFileError(f"{path} is not a readable JSON {label}: {exc}") from exc
+    if not isinstance(document, dict) or document.get("kind") != kind:
+        raise DataFileError(f"{path} is not a {label}")
+    if document.get("format_version") != version:
+        raise DataFileError(f"{path} has format_version {document.get('format_version')!r}; supported: {version}")
+    return document
