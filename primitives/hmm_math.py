@@ -7,7 +7,10 @@ so each recursion is one python loop over time, vectorised over sequences and st
 forward-backward uses per-frame scaling in probability space (one small matmul per step, several
 times faster than log-sum-exp); a sequence whose scaled recursion underflows (all reachable states
 have vanishing probability, possible with ``-inf`` transitions) is recomputed exactly in log space.
-Probabilities that would become denormal numbers (100x slower arithmetic) are flushed to zero.
+Probabilities that would become denormal numbers (100x slower arithmetic) are flushed to zero;
+flushing a forward probability is only safe while its path stays negligible, so every sequence whose
+scaled posteriors do not sum to one on each frame (the sign that a flushed path won later, possible
+when emissions differ by hundreds of nats per frame) is also recomputed in log space.
 Viterbi works in log space throughout.  ``-inf`` entries (forbidden transitions) are allowed
 everywhere.  An optional ``log_endprob`` constrains the state the sequence ends in (left-right
 models that must traverse the whole chain use ``log(e_{K-1})``); without it every end is allowed,
@@ -45,6 +48,12 @@ _SCALE_FLOOR = 1e-250
 _FLUSH = 1e-290
 _LOG_FLUSH = np.log(_FLUSH)
 _FLUSH_STATS = 1e-150
+# Posteriors of a frame must sum to 1; a scaled pass off by more than this (a flushed path that
+# later dominates, seen with sharp 18-D Gaussians) is redone exactly in log space.
+_POSTERIOR_TOL = 1e-6
+# Flushing alpha_hat below _FLUSH_STATS drops transition counts of at most _FLUSH_STATS * max(v);
+# a sequence whose v exceeds this (so more than 1e-20 could be lost) is redone in log space.
+_V_CEILING = 1e130
 
 
 # ----------------------------------------------------------------------------------- input checks
@@ -330,13 +339,12 @@ def forward_backward_padded(log_startprob, log_transmat, log_frameprob, lengths,
         z_end = alpha[lengths - 1, np.arange(s)] @ end
         ll = np.where(valid.T, np.log(scale) + shift.T, 0.0).sum(axis=0) + np.log(z_end)
     bad = np.any(valid.T & ~(scale > _SCALE_FLOOR), axis=0) | ~(z_end > _SCALE_FLOOR)
-    live = step[:-1] & ~bad                                                # (T-1, S): pairs (t, t+1) that count
 
     # beta_hat, so that gamma = alpha_hat * beta_hat; it is end / z_end on each sequence's last frame.
     # v_t = b_hat_{t+1} beta_hat_{t+1} / c_{t+1} is kept: beta_t = A v_t, and xi = A * sum_t alpha_t^T v_t.
     beta = np.empty((t_max, s, k))
     v = np.empty((t_max - 1, s, k))
-    with np.errstate(divide="ignore", invalid="ignore", under="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", under="ignore", over="ignore"):
         term = np.where(bad[:, None], 0.0, end / z_end[:, None])
         beta[t_max - 1] = term
         for t in range(t_max - 2, -1, -1):
@@ -346,6 +354,16 @@ def forward_backward_padded(log_startprob, log_transmat, log_frameprob, lengths,
             np.matmul(v[t], a.T, out=beta[t])
             np.copyto(beta[t], term, where=~step[t, :, None])
         gamma = alpha * beta
+        # Exactly, sum_k alpha_hat beta_hat = 1 on every frame.  A flushed forward entry breaks this
+        # only if its path would have won later (at t = 0 the sum is P_all / P_kept); beta_hat then
+        # often overflows too.  Such sequences are redone in log space, like underflowing ones.
+        total = gamma.sum(axis=2)
+    bad |= np.any(valid.T & ~(np.abs(total - 1.0) <= _POSTERIOR_TOL), axis=0)
+    # xi multiplies alpha_hat (<= 1) by v, which is unbounded on states alpha barely reaches: the
+    # flush of alpha_hat below _FLUSH_STATS is exact only while v stays below _V_CEILING.
+    with np.errstate(invalid="ignore"):
+        bad |= np.any(step[:-1] & ~(v.max(axis=2, initial=0.0) <= _V_CEILING), axis=0)
+    live = step[:-1] & ~bad                                                # (T-1, S): pairs (t, t+1) that count
     # Posterior statistics: zero what does not count and flush what cannot matter, so the GEMMs
     # below (and the caller's M-step) never touch NaN from skipped sequences or denormal numbers.
     np.copyto(gamma, 0.0, where=~(valid & ~bad[:, None]).T[:, :, None])
@@ -394,7 +412,8 @@ def _forward_backward_log(log_pi, log_a, logb, lengths, log_end):
         lb[:, t] = np.where((t < lengths - 1)[:, None], stepped, end)
     possible = np.isfinite(ll)
     norm = np.where(possible, ll, 0.0)
-    with np.errstate(under="ignore", invalid="ignore"):
+    # Frames past a sequence's end (padding) may overflow here; they are zeroed just below.
+    with np.errstate(under="ignore", invalid="ignore", over="ignore"):
         gamma = np.exp(la + lb - norm[:, None, None])
         gamma[~valid | ~possible[:, None]] = 0.0
         xi = np.zeros((k, k))

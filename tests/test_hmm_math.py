@@ -269,6 +269,46 @@ def test_log_space_fallback_when_scaling_underflows():
     assert path.tolist() == [0, 1, 2, 3, 3, 0, 1, 2, 3]
 
 
+def log_enumeration(log_pi, log_a, logb, log_end):
+    """Exact ll, gamma and xi of one sequence by enumerating every state path in log space (no underflow)."""
+    t, k = logb.shape
+    paths = np.array(list(itertools.product(range(k), repeat=t)))
+    with np.errstate(invalid="ignore"):
+        lp = (log_pi[paths[:, 0]] + logb[np.arange(t), paths].sum(axis=1)
+              + log_a[paths[:, :-1], paths[:, 1:]].sum(axis=1) + log_end[paths[:, -1]])
+    ll = np.logaddexp.reduce(lp)
+    w = np.exp(lp - ll)
+    gamma = np.stack([np.bincount(paths[:, i], w, minlength=k) for i in range(t)])
+    xi = np.zeros((k, k))
+    np.add.at(xi, (paths[:, :-1].ravel(), paths[:, 1:].ravel()), np.repeat(w, t - 1))
+    return ll, gamma, xi
+
+
+@pytest.mark.parametrize("logb", [
+    # A path 1e-348 behind after two frames (its forward probability is flushed) wins later, when the
+    # states ahead explain the data 500 nats worse per frame: the scaled pass must notice (ll was -1500.7).
+    [[0, 0, 0], [-400, 0, 0], [-400, 0, 0], [0, -500, -500], [0, -500, -500], [0, -500, -500], [0, 0, 0], [0, 0, 0]],
+    # 1e-174 behind (kept by the recursion, but below the statistics' flush) with backward factors of
+    # 1e174: ll and gamma were right, the transition counts lost the staying step.
+    [[0, 0, 0], [-400, 0, 0], [0, -500, -500], [0, -500, -500], [0, 0, 0], [0, 0, 0]],
+])
+def test_flushed_path_that_wins_later(logb):
+    logb = np.array(logb, dtype=float)
+    log_pi, log_a, log_end = logs(np.eye(3)[0], hm.left_right_transmat(3, 0.5), np.eye(3)[-1])
+    ref_ll, ref_gamma, ref_xi = log_enumeration(log_pi, log_a, logb, log_end)
+    ll, gamma, xi = hm.forward_backward(log_pi, log_a, logb, [len(logb)], log_end)
+    assert ll[0] == pytest.approx(ref_ll, rel=1e-12)
+    np.testing.assert_allclose(gamma, ref_gamma, atol=1e-12)
+    np.testing.assert_allclose(xi, ref_xi, atol=1e-12)
+    # the same inside a batch of ordinary sequences
+    batch = np.vstack([np.zeros((4, 3)), logb, np.zeros((5, 3))])
+    ll_b, gamma_b, xi_b = hm.forward_backward(log_pi, log_a, batch, [4, len(logb), 5], log_end)
+    assert ll_b[1] == pytest.approx(ref_ll, rel=1e-12)
+    np.testing.assert_allclose(gamma_b[4:4 + len(logb)], ref_gamma, atol=1e-12)
+    others = [log_enumeration(log_pi, log_a, np.zeros((n, 3)), log_end)[2] for n in (4, 5)]
+    np.testing.assert_allclose(xi_b, ref_xi + others[0] + others[1], atol=1e-12)
+
+
 def test_impossible_sequence_gives_minus_inf_and_zero_posteriors():
     log_pi, log_a = logs(np.eye(3)[0], hm.left_right_transmat(3))
     log_end = logs(np.eye(3)[-1])[0]
