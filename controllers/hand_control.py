@@ -3,10 +3,15 @@
 :class:`HandController` owns a :class:`~hoap_actions.controllers.retiming.StreamingRetimer` (3 DOF,
 the hand position) and a :class:`~hoap_actions.controllers.wholebody_ik.WholeBodyIK`. Each
 :meth:`HandController.tick` advances the retimer one period towards the desired position, solves
-one IK step for the smoothed point and sends the joint targets to the robot. While the reference is
-at rest, a slow integral term adds the measured hand error (PyBullet's tcp against the reference)
-to the IK target, so servo sag under gravity does not leave a steady millimetre offset; it is frozen
-while the hand moves, because tracking lag and sway are not sag and winding them up shakes the robot.
+one IK step for the smoothed point and sends the joint targets to the robot.
+
+Two corrections use the measured hand (PyBullet's tcp). While the reference is at rest, a slow
+integral term adds the measured error to the IK target, so servo sag under gravity leaves no steady
+millimetre offset; it is frozen while the hand moves, because tracking lag and sway are not sag and
+winding them up shakes the robot. And the IK target never goes more than :data:`MAX_LEAD` below
+the measured hand, so a hand pressed down on an obstacle pushes with a bounded force instead of
+tipping the robot over. (Only downwards: capping it sideways too makes the command follow the
+robot's own rocking, which grows into a fall.)
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from hoap_actions.controllers.wholebody_ik import IKResult, IKStatus, WholeBodyI
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import TIMESTEP
 
-__all__ = ["HAND_LIMITS", "HandController", "HandLimits"]
+__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "rest_posture"]
 
 
 @dataclass(frozen=True)
@@ -39,14 +44,21 @@ INTEGRAL_GAIN = 2.0  # 1/s: the correction closes a steady error with a 0.5 s ti
 INTEGRAL_LIMIT = 0.005  # m, largest correction per axis: sag is ~1-2 mm; more is a blocked hand
 INTEGRAL_MAX_ERROR = 0.004  # m, measured errors beyond this (contact, sway) are not integrated
 AT_REST_SPEED = 1e-3  # m/s, reference speed below which the hand counts as at rest
-LEFT_ARM_REST = {"l_shoulder_pitch": 0.5, "l_elbow": -1.95}  # forearm near vertical, elbow 11 cm over the table
+REST = {
+    "l_shoulder_pitch": 0.5,  # left upper arm raised, forearm near vertical: elbow 11 cm over the table
+    "l_elbow": -1.95,
+    "r_elbow": np.radians(-95.0),  # right forearm 20 deg up: clear of the pegs' tops (home's level forearm is not)
+}
+MAX_LEAD = 0.02  # m, furthest the IK target may go below the measured hand (free motion lags < 1 cm)
 UNREACHED_TICKS = 24  # ticks (0.1 s) of IK error above tolerance before the target counts as unreachable
 
 
 def rest_posture(robot: Robot) -> np.ndarray:
-    """The robot's home posture with the left arm raised and folded, so no squat or lean lowers it onto the table."""
+    """The home posture with the left arm raised and folded (no squat or lean lowers it onto the table)
+    and the right forearm tilted up 20 deg (home's level forearm, 4.2 cm over the table at its
+    lowest, sweeps through 5 cm pegs)."""
     q = np.array(robot.home_posture, dtype=float)
-    for name, value in LEFT_ARM_REST.items():
+    for name, value in REST.items():
         q[robot.joint_index(name)] = value
     return q
 
@@ -56,7 +68,7 @@ class HandController:
 
     Args:
         robot: the robot to command (its :meth:`~Robot.set_targets` gets the whole posture).
-        ik: the whole-body IK (default: one built on the robot's joints and home posture).
+        ik: the whole-body IK (default: one built on the robot's joints and :func:`rest_posture`).
         limits: Cartesian velocity / acceleration / jerk limits of the hand reference.
         dt: tick period (s): one call of :meth:`tick` per physics step.
         integral_gain: gain (1/s) of the measured-error correction; 0 turns it off.
@@ -115,12 +127,16 @@ class HandController:
             self.retimer.reset(np.round(self.reference, 9), np.round(self._velocity, 9))
             step = self.retimer.step(np.round(self.target, 9))
         self.reference, self._velocity = step.position, step.velocity
+        measured = self.robot.frame_pose("r_tcp")[0]
+        error = self.reference - measured
         if self.integral_gain > 0.0 and np.linalg.norm(step.velocity) < AT_REST_SPEED:
-            error = self.reference - self.robot.frame_pose("r_tcp")[0]
             if np.linalg.norm(error) < INTEGRAL_MAX_ERROR:
                 self._correction += self.integral_gain * self.dt * error
                 np.clip(self._correction, -INTEGRAL_LIMIT, INTEGRAL_LIMIT, out=self._correction)
-        result = self.ik.solve(self.reference + self._correction)
+        target = self.reference + self._correction
+        # pressing down on something: the IK target stays within MAX_LEAD below the measured hand
+        target[2] = max(target[2], measured[2] - MAX_LEAD)
+        result = self.ik.solve(target)
         self._unreached = self._unreached + 1 if result.status != IKStatus.OK else 0
         q = result.q.copy()
         q[self._gripper] = self.robot.targets[self._gripper]  # the gripper is commanded separately

@@ -7,6 +7,8 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from hoap_actions.controllers.scripted_expert import ScriptedExpert
+
 
 class RandomPolicy:
     """Uniform random actions from the env's action space (a baseline and a smoke test)."""
@@ -24,7 +26,7 @@ class RandomPolicy:
         return self.action_space.sample()
 
 
-POLICIES = {"random": RandomPolicy}
+POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert}  # scripted: PegInsert with control_mode="ee_delta"
 
 
 def make_policy(name: str, env: gymnasium.Env):

@@ -1,16 +1,23 @@
 """Whole-body inverse kinematics (placo): standing on both feet, reaching with the right hand.
 
-One :meth:`WholeBodyIK.solve` is one QP step (tens of microseconds), meant to run once per 240 Hz
-physics tick on a target that moves a few millimetres per tick (see ``hand_control.py``):
+One :meth:`WholeBodyIK.solve` is one QP step (~60 us), meant to run once per 240 Hz physics tick
+on a target that moves under a millimetre per tick (see ``hand_control.py``). Tasks and constraints:
 
 - feet: hard frame tasks, fixed where the soles stood at :meth:`WholeBodyIK.reset`;
 - centre of mass: hard constraint keeping its divergent component (CoM + velocity / omega) inside
-  the support polygon (the soles' convex hull, clockwise, as placo wants it) shrunk by a margin,
-  plus a soft xy task towards the polygon's centre;
-- hand (``r_tcp``): soft position task, and a soft axis-alignment task keeping the tcp's z axis
-  (the axis of a held peg) vertical, so an upright peg fits between palm and thumb;
-- posture: weak joint task towards the home posture, so the redundancy resolves the same way;
-- joint position and velocity limits from the URDF.
+  the support polygon (the soles' convex hull, clockwise, as placo wants it) shrunk by 3 cm, plus a
+  soft xy task (1e2) towards the polygon's centre;
+- hand (``r_tcp``): soft position task (1e4, seeing at most 2 cm of error per solve) and a weak
+  (1) tilt task keeping the tcp's z axis, the axis of a held peg, vertical: where a level forearm
+  cannot reach, the hand tilts a few degrees rather than misses;
+- pelvis: soft tasks holding it level (1e2) and over its reset position in x and y (1e3); it may
+  rise and sink, which is how the legs lower the shoulders;
+- posture: weak (1e-3) joint task towards a rest posture; the idle left arm held firmly (1);
+- joint position limits (the knees and waist narrower than the URDF's, see
+  :data:`IK_JOINT_LIMITS`) and velocity limits (5 rad/s).
+
+At reset the posture, CoM and tilt targets start at the measured state and move to their goals at
+bounded rates, so a reset never swings the body at full joint speed.
 
 Base synchronisation: placo's floating base is set from PyBullet's pelvis pose once per episode (in
 :meth:`reset`), then moves only by the solver, pinned by the hard feet tasks to the soles' world
@@ -26,7 +33,7 @@ from __future__ import annotations
 
 import enum
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -49,7 +56,13 @@ HAND = "r_tcp"
 PELVIS = "pelvis"
 FROZEN = ("head_pan", "head_tilt", "head_roll", "r_gripper", "l_gripper")
 """Joints the IK leaves where they are: they move no task frame (the grippers are commanded apart)."""
+MAX_HAND_PULL = 0.02  # m, largest hand error the QP sees in one solve
 COM_HEIGHT = 0.3  # m, the standing robot's CoM over its soles (for the DCM's natural frequency)
+IK_JOINT_LIMITS = {"r_knee": (-0.017, 1.1), "l_knee": (-0.017, 1.1), "waist_pitch": (-0.017, 0.5)}
+"""IK-only ranges (rad). Knees bent at most 63 deg (a squat of about 3 cm): deeper, the IK sinks the
+robot 10 cm to reach the far left, the left arm meets the table and the pelvis drops below the fall
+threshold. Waist leaning at most 29 deg: further, the servos' 4.5 N m cannot hold the trunk and the
+robot topples (reaching for a target 1 m away did)."""
 HELD = ("l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow", "l_wrist_yaw")
 """The idle left arm: it follows the posture, it does not act as a counterweight."""
 POSTURE_RATE = 0.5  # rad/s at which the posture target moves from the reset posture to the rest posture
@@ -97,12 +110,13 @@ class WholeBodyIK:
             arm cannot reach with a level forearm the hand tilts rather than misses.
         posture_weight: soft weight of the posture task (per rad^2).
         pelvis_weight: soft weight keeping the pelvis level (per rad^2).
-        pelvis_x_weight, pelvis_y_weight: soft weights holding the pelvis over its reset position (per m^2).
+        pelvis_xy_weight: soft weight holding the pelvis over its reset position (per m^2).
         com_weight: soft weight of the CoM xy task towards the support polygon's centre (per m^2).
         com_margin: how far inside the support polygon the CoM must stay (m).
         tolerance: hand error (m) above which a solve reports ``TARGET_UNREACHED``.
         frozen: joints the solver must not move (fewer free variables, a faster QP).
         held, held_weight: joints kept near their posture by a stronger soft task (per rad^2).
+        joint_limits: ranges (rad) narrower than the URDF's for the IK only, e.g. the knees.
     """
 
     def __init__(
@@ -115,14 +129,14 @@ class WholeBodyIK:
         axis_weight: float = 1.0,
         posture_weight: float = 1e-3,
         pelvis_weight: float = 1e2,
-        pelvis_x_weight: float = 1e3,
-        pelvis_y_weight: float = 1e3,
+        pelvis_xy_weight: float = 1e3,
         com_weight: float = 1e2,
         com_margin: float = 0.03,
         tolerance: float = 3e-3,
         frozen: Sequence[str] = FROZEN,
         held: Sequence[str] = HELD,
         held_weight: float = 1.0,
+        joint_limits: Mapping[str, tuple[float, float]] = IK_JOINT_LIMITS,
     ) -> None:
         self.joint_names = tuple(joint_names)
         home = np.asarray(home_posture, dtype=float)
@@ -140,6 +154,8 @@ class WholeBodyIK:
         if missing:
             raise InvalidInputError(f"joints {missing} are not in the IK model; its joints: {sorted(known)}")
         self._q_index = np.array([self.robot.get_joint_offset(n) for n in self.joint_names])
+        for name, (low, high) in joint_limits.items():
+            self.robot.set_joint_limits(name, float(low), float(high))
 
         solver = self.solver = placo.KinematicsSolver(self.robot)
         solver.dt = self.dt
@@ -171,15 +187,12 @@ class WholeBodyIK:
         self._tilt.configure("hand_tilt", "soft", float(axis_weight))
         self._pelvis = solver.add_orientation_task(PELVIS, np.eye(3))
         self._pelvis.configure("pelvis_level", "soft", float(pelvis_weight))
-        # The pelvis stays over its reset position: 2 cm behind the table edge, and shifting it
-        # sideways to reach swings the trunk enough to topple the robot (measured); it may rise and
-        # sink (the legs lower and raise the shoulders).
-        self._pelvis_x = solver.add_position_task(PELVIS, np.zeros(3))
-        self._pelvis_x.mask.set_axises("x")
-        self._pelvis_x.configure("pelvis_x", "soft", float(pelvis_x_weight))
-        self._pelvis_y = solver.add_position_task(PELVIS, np.zeros(3))
-        self._pelvis_y.mask.set_axises("y")
-        self._pelvis_y.configure("pelvis_y", "soft", float(pelvis_y_weight))
+        # The pelvis stays over its reset position: 2 cm behind the table edge, and moving it far to
+        # reach (back, or sideways) swings the trunk enough to topple the robot (measured). It may
+        # rise and sink: the legs lower and raise the shoulders.
+        self._pelvis_xy = solver.add_position_task(PELVIS, np.zeros(3))
+        self._pelvis_xy.mask.set_axises("xy")
+        self._pelvis_xy.configure("pelvis_xy", "soft", float(pelvis_xy_weight))
         self._posture = solver.add_joints_task()
         self._posture.configure("posture", "soft", float(posture_weight))
         # Joints held firmly at their posture (the idle arm): left free, the IK swings them as
@@ -225,8 +238,7 @@ class WholeBodyIK:
         self._hand.target_world = robot.get_T_world_frame(HAND)[:3, 3]
         T_pelvis = robot.get_T_world_frame(PELVIS)
         self._pelvis.R_world_frame = T_pelvis[:3, :3]
-        self._pelvis_x.target_world = T_pelvis[:3, 3]
-        self._pelvis_y.target_world = T_pelvis[:3, 3]
+        self._pelvis_xy.target_world = T_pelvis[:3, 3]
         # Posture, CoM and margin start where the robot is and move to their goals at bounded rates
         # (see _settle): jumping to them at once would swing the body at full joint speed.
         self._posture_target = q.copy()
@@ -320,12 +332,17 @@ class WholeBodyIK:
     def solve(self, hand_target: ArrayLike) -> IKResult:
         """One QP step towards ``hand_target`` (3,) (m, world); never raises on an infeasible target."""
         target = np.asarray(hand_target, dtype=float)
-        self._hand.target_world = target
         robot = self.robot
         self._settle()
         try:
             robot.update_kinematics()
-            self._tilt.R_world_frame = _heading(robot.get_T_world_frame(HAND)) @ self._tilt_rotation
+            # The task sees at most MAX_HAND_PULL of error: the trade-off against the other tasks
+            # grows with the error, and a far target would otherwise drag the pelvis and the CoM.
+            T_hand = robot.get_T_world_frame(HAND)
+            pull = target - T_hand[:3, 3]
+            distance = float(np.linalg.norm(pull))
+            self._hand.target_world = T_hand[:3, 3] + pull * min(1.0, MAX_HAND_PULL / distance) if distance > 0.0 else target
+            self._tilt.R_world_frame = _heading(T_hand) @ self._tilt_rotation
             self.solver.solve(True)
             robot.update_kinematics()
             q = robot.state.q

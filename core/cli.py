@@ -9,12 +9,14 @@ import sys
 from pathlib import Path
 
 from hoap_actions.episodes import run_episodes, summarise
-from hoap_actions.errors import HoapActionsError
+from hoap_actions.errors import HoapActionsError, InvalidInputError
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from hoap_actions.controllers.policies import make_policy
+    from hoap_actions.controllers.policies import POLICIES, make_policy
 
+    if args.policy not in POLICIES:
+        raise InvalidInputError(f"unknown policy {args.policy!r}; accepted: {sorted(POLICIES)}")
     results = run_episodes(
         env_id=args.env,
         policy_factory=lambda env: make_policy(args.policy, env),
@@ -22,6 +24,8 @@ def _demo(args: argparse.Namespace) -> int:
         seed=args.seed,
         video=args.video,
         snapshot=args.snapshot,
+        # a policy may need a control mode (the scripted expert acts through ee_delta)
+        env_kwargs={"control_mode": getattr(POLICIES[args.policy], "control_mode", "joint_delta")},
     )
     summary = summarise(results)
     print(

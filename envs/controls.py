@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from hoap_actions.controllers.hand_control import HandController
+from hoap_actions.controllers.hand_control import HandController, rest_posture
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 
@@ -62,13 +62,19 @@ edges, from just above the table (1.5 cm: the palm reaches 2 cm below the tcp) t
 class EEDeltaController:
     """``"ee_delta"``: action in [-1, 1]^4 moves the desired right-hand (tcp) position and works the gripper.
 
-    ``action[:3]`` adds up to :data:`MAX_HAND_STEP` (8 mm) per axis to the desired world position,
+    ``action[:3]`` adds up to :data:`MAX_HAND_STEP` (5 mm) per axis to the desired world position,
     held inside :data:`HAND_BOX_LOW`..:data:`HAND_BOX_HIGH` (``last_clipped`` says when it was held).
-    ``action[3]`` is the gripper closure ``clip(a, 0, 1)``: ``<= 0`` open, 1 fully closed (squeezing a
-    held peg with the servo's full torque), values between partly closed (0.75 touches a 15 mm peg). Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the
-    desired position under velocity / acceleration / jerk limits and the whole-body IK turns it into
-    joint targets for all 28 joints, feet planted, centre of mass inside the support polygon.
-    ``hand`` exposes the IK status (``hand.last``) and whether the target proved unreachable.
+    ``action[3]`` is the gripper closure ``clip(a, 0, 1)``: ``<= 0`` open, 1 fully closed; 0.75 just
+    touches a 15 mm peg and the squeeze grows with the closure beyond it (0.78 holds a peg firmly).
+    Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the desired position
+    under velocity / acceleration / jerk limits and the whole-body IK turns it into joint targets for
+    all 28 joints, feet planted, centre of mass inside the support polygon. ``hand`` exposes the IK
+    status (``hand.last``) and whether the target proved unreachable.
+
+    Episodes start from :func:`~hoap_actions.controllers.hand_control.rest_posture` (left arm raised,
+    right forearm tilted up) rather than the home posture, whose level right forearm lies across the
+    pegs' tops: the controller poses the robot there when it is reset on the freshly restored world,
+    before the env places the layout.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -79,7 +85,10 @@ class EEDeltaController:
         self.desired = np.zeros(3)
 
     def reset(self) -> None:
-        """Hold the hand where it is; the gripper keeps its current target."""
+        """Hold the hand where it is; the gripper keeps its current target. On the freshly restored
+        world (robot exactly at home), first pose the robot in the rest posture."""
+        if np.array_equal(self.robot.joint_positions(), self.robot.home_posture):
+            self.robot.reset(rest_posture(self.robot))
         self.hand.reset()
         self.desired = self.hand.reference.copy()
         self.last_clipped = False

@@ -1,0 +1,144 @@
+"""Whole-body IK and per-tick hand control on the standing robot in PyBullet (real physics)."""
+
+from __future__ import annotations
+
+import time
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from hoap_actions.controllers.hand_control import HandController
+from hoap_actions.controllers.wholebody_ik import IKStatus, polygon_distance
+from hoap_actions.envs import world
+from hoap_actions.envs.robot import Robot
+from hoap_actions.envs.scene import Scene
+from hoap_actions.envs.sim import Sim
+
+TICKS = 480  # 2 s at 240 Hz: a move of up to 0.2 m at 0.15 m/s, then settling
+
+
+@pytest.fixture(scope="module")
+def standing():
+    """A standing robot with the table cleared (pegs and board moved off it), and its hand controller."""
+    sim = Sim()
+    robot = Robot(sim)
+    scene = Scene(sim)
+    sim.set_base_pose("hole_board", (0.5, 0.5, 0.0125))
+    for i, name in enumerate(scene.peg_names):
+        sim.set_base_pose(name, (0.5, -0.5 + 0.05 * i, 0.025))
+    sim.step(48)
+    state = sim.save_state()
+    hand = HandController(robot)
+    yield sim, robot, hand, state
+    sim.close()
+
+
+def _move(sim, robot, hand, target, ticks=TICKS):
+    """Run the controller towards ``target``; returns the least CoM margin seen (m) and the last IK result."""
+    hand.set_target(target)
+    margin = np.inf
+    for k in range(ticks):
+        result = hand.tick()
+        sim.step(1)
+        if k % 8 == 0:
+            margin = min(margin, polygon_distance(robot.com()[:2], robot.support_polygon()))
+    return margin, result
+
+
+def test_reset_syncs_the_ik_model_with_pybullet(standing):
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    model = hand.ik.robot
+    for frame in ("r_sole", "l_sole", "r_tcp"):
+        np.testing.assert_allclose(model.get_T_world_frame(frame)[:3, 3], robot.frame_pose(frame)[0], atol=1e-6)
+    np.testing.assert_allclose(hand.ik.q, robot.joint_positions(), atol=1e-9)
+
+
+def test_reachable_targets_are_reached_within_2mm_and_the_com_stays_inside(standing):
+    sim, robot, hand, state = standing
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(10):
+        target = np.r_[rng.uniform(world.WORK_AREA_LOW, world.WORK_AREA_HIGH), rng.uniform(0.02, 0.12)]
+        sim.restore_state(state)
+        hand.reset()
+        if hand.ik.probe(target).error > 5e-4:  # beyond this arm (close to the right shoulder, high)
+            continue
+        margin, result = _move(sim, robot, hand, target)
+        error = np.linalg.norm(robot.frame_pose("r_tcp")[0] - target)
+        assert error < 0.002, f"target {target.round(3)} missed by {error * 1000:.2f} mm"
+        assert result.status == IKStatus.OK
+        assert margin > 0.01, f"CoM came within {margin * 1000:.1f} mm of the support polygon's edge"
+        assert not robot.has_fallen()
+        checked += 1
+    assert checked >= 7, f"only {checked} of 10 work-area targets were reachable"
+
+
+def test_unreachable_target_is_reported_and_the_robot_stays_up(standing):
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    target = robot.frame_pose("r_tcp")[0] + np.array([1.0, 0.0, 0.0])
+    margin, result = _move(sim, robot, hand, target)
+    assert result.status == IKStatus.TARGET_UNREACHED
+    assert result.hand_error > hand.ik.tolerance
+    assert hand.unreachable
+    assert margin > 0.0
+    assert not robot.has_fallen()
+
+
+def test_solver_failure_holds_the_last_posture(standing):
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    before = hand.ik.q.copy()
+    result = hand.ik.solve(np.array([np.nan, 0.0, 0.1]))
+    assert result.status == IKStatus.SOLVER_FAILED
+    np.testing.assert_array_equal(result.q, before)
+    ok = hand.ik.solve(robot.frame_pose("r_tcp")[0])
+    assert ok.status == IKStatus.OK
+
+
+def test_probe_leaves_the_ik_state_untouched(standing):
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    before = hand.ik.q.copy()
+    probe = hand.ik.probe(np.array([0.0, 0.0, 0.06]))
+    assert probe.error < 1e-3
+    np.testing.assert_array_equal(hand.ik.q, before)
+
+
+def test_one_solve_takes_well_under_a_millisecond(standing):
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    target = robot.frame_pose("r_tcp")[0]
+    times = []
+    for k in range(400):
+        start = time.perf_counter()
+        hand.ik.solve(target + 0.02 * np.array([np.sin(k / 40), np.cos(k / 50) - 1.0, 0.0]))
+        times.append(time.perf_counter() - start)
+    assert np.median(times) < 5e-4  # ~60 us measured; generous for loaded CI machines
+
+
+def test_ee_delta_env_passes_the_gymnasium_checker():
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_ee_delta_random_actions_keep_the_robot_up():
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for k in range(150):
+        action = np.r_[np.sign(rng.uniform(-1, 1, 3)), rng.uniform(-1, 1)] if k % 30 < 15 else rng.uniform(-1, 1, 4)
+        _, _, terminated, _, info = env.step(action.astype(np.float32))
+        assert not info["fallen"], f"the robot fell after {k + 1} random ee_delta actions"
+        if terminated:
+            break
+    env.close()
