@@ -14,6 +14,7 @@ class RandomPolicy:
     """Uniform random actions from the env's action space (a baseline and a smoke test)."""
 
     failure: str | None = None
+    control_mode = "joint_delta"
 
     def __init__(self, env: gymnasium.Env, seed: int = 0) -> None:
         self.action_space = env.action_space

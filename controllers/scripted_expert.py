@@ -17,9 +17,11 @@ lifts, carries it (around the other pegs when it cannot pass over them), lines t
 with the hole from measured positions, lowers it 8 mm in and lets go: the peg drops to the bottom.
 
 When the expert gives up it says why in :attr:`ScriptedExpert.failure`: ``"unreachable layout"``
-(the IK cannot bring the hand to the peg or the hole, found while planning or while moving) or
-``"grasp slipped"`` (the peg does not follow the hand). The episode loop adds ``"success"``,
-``"fell"`` and ``"timeout"``. The hand's heading is read from the robot (it is not in the observation).
+(the IK cannot bring the hand to the peg or the hole, found while planning or while moving),
+``"grasp slipped"`` (the peg does not follow the hand) or ``"peg knocked over"`` (the hand or arm
+toppled the target peg before grasping it, usually coming down on a peg behind it). The episode loop
+adds ``"success"``, ``"fell"`` and ``"timeout"``. The hand's heading is read from the robot (it is
+not in the observation).
 """
 
 from __future__ import annotations
@@ -69,6 +71,7 @@ MOVE_STEPS = 90  # steps (3 s) a move may take before the expert moves on regard
 BLOCKED_HEIGHT = 0.008  # m, tcp this far above its reference while coming down: something is under the hand
 MIN_LIFT = 0.02  # m, how far the peg must have risen with the hand after the lift
 SLIP_DISTANCE = 0.01  # m, drift of the peg relative to the hand that counts as a slipped grasp
+KNOCKED_OVER = np.radians(30.0)  # tilt of the target peg before the grasp at which the expert gives up
 
 # ---------------------------------------------------------------------------- hand footprint
 # Outlines in the tcp frame (u along the forearm, v towards the palm; m), measured on hoap3.urdf.
@@ -139,6 +142,7 @@ class ScriptedExpert:
     """
 
     failure: str | None
+    control_mode = "ee_delta"  # the env's control mode this policy acts through
 
     def __init__(self, env: gymnasium.Env) -> None:
         base = env.unwrapped
@@ -161,11 +165,14 @@ class ScriptedExpert:
         self.tcp = o[2 * n + 7 : 2 * n + 10]
         task = o[2 * n + 10 :]
         k = 7 * self.n_pegs
-        pegs = task[:k].reshape(self.n_pegs, 7)[:, :3]
+        poses = task[:k].reshape(self.n_pegs, 7)
+        pegs = poses[:, :3]
         self.holes = task[k : k + 3 * scene_module.N_HOLES].reshape(scene_module.N_HOLES, 3)
         one_hot = task[k + 3 * scene_module.N_HOLES :]
         target = int(np.argmax(one_hot[: self.n_pegs]))
         self.peg = pegs[target]
+        qx, qy = poses[target, 3:5]
+        self.peg_upright = 1.0 - 2.0 * (qx * qx + qy * qy) > np.cos(KNOCKED_OVER)  # axis z component
         self.others = np.delete(pegs, target, axis=0)
         self.hole = self.holes[int(np.argmax(one_hot[self.n_pegs :]))]
         self.peg_bottom = np.asarray(obs["achieved_goal"], dtype=float)
@@ -308,6 +315,8 @@ class ScriptedExpert:
             return
         if self.env.controller.hand.unreachable and self.phase in (Phase.APPROACH, Phase.DESCEND, Phase.CARRY, Phase.ALIGN):
             self.failure = "unreachable layout"
+        if not self.peg_upright and self.phase in (Phase.RISE, Phase.APPROACH, Phase.DESCEND, Phase.BACK_OFF, Phase.TOUCH):
+            self.failure = "peg knocked over"
         phase = self.phase
         if phase == Phase.RISE and self._arrived(speed, tolerance=0.005):
             phase = Phase.APPROACH
