@@ -18,8 +18,9 @@ with the hole from measured positions, lowers it 8 mm in and lets go: the peg dr
 
 When the expert gives up it says why in :attr:`ScriptedExpert.failure`: ``"unreachable layout"``
 (the IK cannot bring the hand to the peg or the hole, found while planning or while moving),
-``"grasp slipped"`` (the peg does not follow the hand) or ``"peg knocked over"`` (the hand or arm
-toppled the target peg before grasping it, usually coming down on a peg behind it). The episode loop
+``"grasp slipped"`` (the peg does not follow the hand), ``"peg knocked over"`` (the hand or arm
+toppled the target peg before grasping it) or ``"approach blocked"`` (every grasp shift came down on
+something, usually the forearm on a peg right behind the target). The episode loop
 adds ``"success"``, ``"fell"`` and ``"timeout"``. The hand's heading is read from the robot (it is
 not in the observation).
 """
@@ -337,11 +338,13 @@ class ScriptedExpert:
             self.target = np.array([*self.target[:2], self.approach_z])
             if self._arrived(speed, tolerance=0.005):
                 untried = [s for s in GRASP_SHIFTS if s not in self.tried_shifts]
-                if untried:
-                    self.shift = untried[0]
-                    self.tried_shifts.append(self.shift)
-                    self.blocked_steps = 0
-                    self._enter(Phase.APPROACH)
+                if not untried:
+                    self.failure = "approach blocked"
+                    return
+                self.shift = untried[0]
+                self.tried_shifts.append(self.shift)
+                self.blocked_steps = 0
+                self._enter(Phase.APPROACH)
         elif phase == Phase.TOUCH:
             self.target = np.array([*self._grasp_xy(self.shift, PALM_GAP), self.grasp_z])
             if self._arrived(speed, tolerance=0.001):

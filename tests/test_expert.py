@@ -1,0 +1,69 @@
+"""The scripted grasp-and-insert expert on PegInsert-v0 (ee_delta): success on fixed layouts, no falls.
+
+The fast test is a regression test on 10 tuning layouts the expert is known to solve (hand-picked:
+it says nothing about the success rate); the slow one runs 100 layouts on seeds the expert was not
+tuned on and holds it to the goal of 95 %, which it does not reach yet (measured 79 % there).
+"""
+
+from __future__ import annotations
+
+import collections
+
+import gymnasium
+import numpy as np
+import pytest
+
+from hoap_actions.controllers.scripted_expert import ScriptedExpert, footprint_clearance, thumb_outline
+from hoap_actions.episodes import run_episode
+from hoap_actions.errors import InvalidInputError
+
+FAILURE_REASONS = {"unreachable layout", "grasp slipped", "peg knocked over", "approach blocked", "timeout"}
+FIXED_LAYOUTS = (1, 2, 4, 5, 6, 8, 9, 10, 11, 12)
+"""Tuning seeds whose layouts the expert solves (none has the target peg next to the right shoulder
+or a peg right behind it): a regression test; the success rate is measured on unseen seeds."""
+
+
+@pytest.fixture(scope="module")
+def env():
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
+    yield env
+    env.close()
+
+
+def _run(env, seeds):
+    policy = ScriptedExpert(env)
+    return [run_episode(env, policy, seed) for seed in seeds]
+
+
+def test_expert_still_solves_the_known_solvable_layouts(env):
+    results = _run(env, FIXED_LAYOUTS)
+    reasons = collections.Counter(r.reason for r in results)
+    assert reasons["fell"] == 0, reasons
+    assert all(r.success for r in results), reasons
+    assert set(reasons) <= FAILURE_REASONS | {"success"}, reasons
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason="goal of 95 % not reached yet: 79 % on seeds 2000-2099, 85.5 % on 1000-1199", strict=False)
+def test_expert_on_100_unseen_layouts(env):
+    results = _run(env, range(2000, 2100))
+    reasons = collections.Counter(r.reason for r in results)
+    assert reasons["fell"] == 0, reasons
+    assert set(reasons) <= FAILURE_REASONS | {"success"}, reasons
+    assert np.mean([r.success for r in results]) >= 0.95, reasons
+
+
+def test_expert_needs_the_ee_delta_control_mode():
+    joint_env = gymnasium.make("hoap_actions/PegInsert-v0")
+    with pytest.raises(InvalidInputError, match="ee_delta"):
+        ScriptedExpert(joint_env)
+    joint_env.close()
+
+
+def test_footprint_model_matches_the_hand():
+    """The thumb outline at the contact closure lies parallel to the palm, 15 mm from it."""
+    contact = thumb_outline(0.75)
+    np.testing.assert_allclose(contact[:, 1].max(), -0.0075, atol=1e-9)  # inner face
+    # a peg centred on the tcp touches neither plate; one 2 cm to the palm side is inside the palm
+    assert footprint_clearance(np.array([[0.0, 0.0]]), 0.007, closure=0.75) > 0.0
+    assert footprint_clearance(np.array([[0.0, 0.02]]), 0.0075, closure=0.75) < 0.0
