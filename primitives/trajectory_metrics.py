@@ -11,14 +11,17 @@ part.  This module gives the three pieces and the choices made for each:
 * :func:`warped_rms_error` (eq. 5): the alignment's squared distances are averaged **in the time of
   the reference** -- first over the query frames matched to each reference frame, then over the
   reference frames -- divided by the number of markers, and square-rooted.  Averaging plainly over
-  the path's steps would let a query that lingers (a repeated frame) weigh more; measured on the
-  reference's clock, slowing down, speeding up or pausing the query does not change e.
-* :func:`dtw_average`: DTW barycentre averaging (Petitjean et al., 2011).  Start from the medoid
-  (the repetition with the least summed DTW cost to the others), align every repetition to the
-  current average, replace each average frame by the mean of all frames aligned to it, and repeat
-  until the average stops moving.  Each round cannot raise the summed DTW cost to the repetitions,
-  and the result keeps the medoid's number of frames.  A frame-by-frame mean of unaligned
-  repetitions would instead blur a movement performed at different speeds.
+  the path's steps would let a query that lingers (repeated frames) weigh more; measured on the
+  reference's clock, pauses in the query do not change e, and a smooth re-timing changes it only
+  through sampling (its frames fall between the reference's).
+* :func:`dtw_average`: DTW barycentre averaging (Petitjean et al., 2011) with each repetition
+  counting once per average frame.  Start from the medoid (the repetition with the least summed DTW
+  cost to the others); bring every repetition onto the average's clock (:func:`warp_to`: the mean of
+  its frames aligned to each average frame); replace the average by the mean of these; repeat until
+  it stops moving.  For fixed alignments this is the minimiser of the summed eq. (5) errors of the
+  repetitions, and a repetition that holds still longer does not pull the average towards itself.
+  The result keeps the medoid's number of frames.  A frame-by-frame mean of unaligned repetitions
+  would instead blur a movement performed at different speeds.
 
 Trajectories are ``(T, D)`` arrays, or ``(T, M, 3)`` marker arrays that are flattened to ``(T, 3M)``;
 distances are in the data's units (metres for the recorded demonstrations).
@@ -173,13 +176,7 @@ def dtw_average(sequences: Sequence[np.ndarray], n_iter: int = 30, tol: float = 
             costs[p, q] = costs[q, p] = dtw_path(seqs[p], seqs[q])[1]
     average = seqs[int(np.argmin(costs.sum(axis=1)))].copy()
     for _ in range(int(n_iter)):
-        sums = np.zeros_like(average)
-        counts = np.zeros(average.shape[0])
-        for s in seqs:
-            path, _ = dtw_path(s, average)
-            np.add.at(sums, path[:, 1], s[path[:, 0]])
-            counts += np.bincount(path[:, 1], minlength=average.shape[0])
-        updated = sums / counts[:, None]
+        updated = np.mean([warp_to(s, average) for s in seqs], axis=0)
         moved = float(np.abs(updated - average).max())
         average = updated
         if moved <= tol:
