@@ -4,6 +4,25 @@ recorded like a VICON session (6 arm/hand markers and the block's pose at 100 Hz
 Every episode is approach -> one manipulation -> remove (the paper's approach-act-remove cycle), from
 and back to rest with the arm hanging beside the chair.
 
+- Phase labels (hidden ground truth, evaluation only) follow the paper's decomposition, where a
+  manipulation is what changes the object (its Fig. 7: push, move, rotate between approach and remove;
+  "the grasping movement could not be detected"). Each frame is labelled with the part of the
+  demonstrator's *plan* it executes, never from the recorded object trajectory (labels read off ``O``
+  would make an evaluation of methods that read ``O`` circular):
+
+  - approach: the reach from rest; for a grasp also the fingers closing on the block; for a push also
+    the first ``gap`` metres of the push path, the hand-block gap the demonstrator measures before
+    pushing, so the push label starts where the hand reaches the block;
+  - the manipulation (``push-<direction>``, ``move-<direction>``, ``rotate``): the rest of the push
+    path, to where the hand (and the block with it) stops; the lift, carry and set-down of a move; the
+    turn of a rotate (the block raised 2 mm, turned, held there);
+  - remove: letting go and leaving: after a push the hand easing off the block (``PUSH_RELAX``); after
+    a grasp the hand holding still on the placed block, the grasp constraint's release (the block then
+    settles the set-down clearance, ``PLACE_CLEARANCE``, by physics) and the fingers opening; then the
+    way back to rest.
+
+  :data:`LABELS_VERSION` names this labelling; datasets record it (``generator["labels_version"]``).
+
 - Motion model. The hand (an IK *site*: the palm centre for pushes, the pinch point between index and
   thumb for grasps) follows minimum-jerk paths (Flash and Hogan): each segment is a curve timed so that
   its arc length follows ``L (10 t^3 - 15 t^4 + 6 t^5)``, hence a bell-shaped speed that starts and ends
@@ -78,6 +97,10 @@ TURNS = {"ccw": 1.0, "cw": -1.0}  # rotate directions, seen from above
 ACTIONS = ("push", "move", "rotate", "approach")
 PHASE_NAMES = ("approach", *(f"push-{d}" for d in DIRECTIONS), *(f"move-{d}" for d in DIRECTIONS), "rotate", "remove")
 """Phase label table: a frame's label code indexes this tuple."""
+LABELS_VERSION = 2
+"""Which frames get which phase label (module docstring). 1 (datasets without ``labels_version``): the
+grasp, the hold and release after a carry or turn, the push path's initial gap and the push's ease-off
+were labelled with the manipulation. 2: the grasp and the initial gap are approach, letting go is remove."""
 
 REST_POSTURE = dict.fromkeys(BODY_JOINTS, 0.0) | {
     "r_shoulder_flexion": -0.1,
@@ -436,7 +459,11 @@ class Demonstrator:
     # ------------------------------------------------------------------ phases
     def _push(self, task: DemoTask, start: np.ndarray) -> np.ndarray:
         """Palm (or back of the hand) beside the block, then push it ``distance`` along the direction;
-        returns the direction the hand leaves in."""
+        returns the direction the hand leaves in.
+
+        One minimum-jerk push path covers the measured hand-block gap plus ``distance``. Labels: its
+        first ``gap`` metres (the hand closing on the still block) are approach, the rest is the push;
+        the hand easing off the block afterwards is remove."""
         rng = self._rng
         u = np.array([*DIRECTIONS[task.direction], 0.0])
         candidates = [_SIDE_PUSH] if task.direction in ("left", "right") else _FRONT_PUSHES
@@ -453,11 +480,15 @@ class Demonstrator:
             gap = PUSH_GAP
         travel = gap + task.distance + rng.normal(0.0, 0.001)
         n = self._frames(0.5 + 3.0 * travel)
-        path = target + u * (travel * minimum_jerk(np.arange(1, n + 1) / n))[:, None]
-        self._run(self._segment(task.phase, "palm_site", path, [rotation] * n, FINGERS_PUSH))
+        progress = travel * minimum_jerk(np.arange(1, n + 1) / n)
+        path = target + u * progress[:, None]
+        touch = int(np.searchsorted(progress, gap, side="right"))  # the first frame past the gap
+        for label, part in (("approach", path[:touch]), (task.phase, path[touch:])):
+            if len(part):
+                self._run(self._segment(label, "palm_site", part, [rotation] * len(part), FINGERS_PUSH))
         n = self._frames(0.15)
         path = path[-1] - u * (PUSH_RELAX * minimum_jerk(np.arange(1, n + 1) / n))[:, None]
-        self._run(self._segment(task.phase, "palm_site", path, [rotation] * n, FINGERS_PUSH))
+        self._run(self._segment("remove", "palm_site", path, [rotation] * n, FINGERS_PUSH))
         return -u
 
     def _push_start(
@@ -488,13 +519,17 @@ class Demonstrator:
         return float(error + 3.0 * np.abs(q[:3]).sum())
 
     def _grasp_and_carry(self, task: DemoTask, start: np.ndarray) -> None:
-        """Pinch the block, then lift-carry-place it (move) or turn it about the vertical (rotate), release."""
+        """Pinch the block, then lift-carry-place it (move) or turn it about the vertical (rotate), release.
+
+        Labels: the pinch (the block still) ends the approach; the carry or turn is the manipulation;
+        holding still, the release and the fingers opening (the block still but for settling the 2 mm
+        set-down clearance) begin the remove."""
         rng = self._rng
         turn = TURNS[task.direction] * task.angle if task.action == "rotate" else 0.0
         shift = task.distance * np.array([*DIRECTIONS[task.direction], 0.0]) if task.action == "move" else np.zeros(3)
         position, rotation = self._grasp_pose(start, turn, shift)
         self._reach("grasp_site", position, rotation, FINGERS_OPEN)
-        self._fingers(FINGERS_OPEN, FINGERS_PINCH, 0.35, task.phase, watch_grasp=True)
+        self._fingers(FINGERS_OPEN, FINGERS_PINCH, 0.35, "approach", watch_grasp=True)
         pinch = self._q[-2:].copy()  # where the guarded close stopped
         if task.action == "move":
             end = position + np.array([*DIRECTIONS[task.direction], 0.0]) * task.distance
@@ -510,12 +545,12 @@ class Demonstrator:
             path = position + np.outer(minimum_jerk(4.0 * tau), [0.0, 0.0, PLACE_CLEARANCE])
             turns = Rotation.from_rotvec(np.outer(turn * minimum_jerk(tau), [0.0, 0.0, 1.0])) * rotation
             self._run(self._segment(task.phase, "grasp_site", path, list(turns), pinch))
-        self._hold(0.1, task.phase)
+        self._hold(0.1, "remove")
         if self._grasp is not None:
             self.sim.detach(self._grasp)
             self._grasp = None
-        self._fingers(pinch, FINGERS_OPEN, 0.3, task.phase)
-        self._hold(0.1, task.phase)
+        self._fingers(pinch, FINGERS_OPEN, 0.3, "remove")
+        self._hold(0.1, "remove")
 
     def _reach(
         self, site: str, target: np.ndarray, rotation: Rotation, fingers: np.ndarray,

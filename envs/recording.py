@@ -13,6 +13,13 @@ Presets (``PRESETS``):
 
 Same preset and seed -> the same dataset, array for array: every random draw comes from generators
 seeded by ``(seed, episode index)``, and each episode starts from the same restored PyBullet state.
+
+Each frame's hidden phase label (``ground_truth/labels``) is the part of the demonstrator's plan it
+executes, in the paper's decomposition: the grasp and the hand closing the last gap to a block it
+pushes are approach, letting go is remove, only what changes the block is the manipulation (see
+:mod:`hoap_actions.envs.demonstrator`). The ``generator`` attribute records ``labels_version``
+(:data:`~hoap_actions.envs.demonstrator.LABELS_VERSION`); datasets recorded before it existed lack
+the key and use labelling 1, in which the grasp and release belonged to the manipulation.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from hoap_actions.envs.demo_scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, 
 from hoap_actions.envs.demonstrator import (
     DIRECTIONS,
     FPS,
+    LABELS_VERSION,
     MARKER_NAMES,
     PHASE_NAMES,
     TURNS,
@@ -166,6 +174,7 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
             "preset": preset,
             "seed": seed,
             "episodes": len(episodes),
+            "labels_version": LABELS_VERSION,
             "tasks": [_task_dict(t) for t in tasks],
             # quality record: episodes in which the hand touched the table, or a grasp was not made
             "table_contact_episodes": table_contacts,

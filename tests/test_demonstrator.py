@@ -12,8 +12,10 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.envs.demo_scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
 from hoap_actions.envs.demonstrator import (
     DIRECTIONS,
+    LABELS_VERSION,
     MARKER_LINKS,
     PHASE_NAMES,
+    PLACE_CLEARANCE,
     Demonstrator,
     DemoTask,
     minimum_jerk_curve,
@@ -28,6 +30,7 @@ from hoap_actions.envs.world import (
 )
 from hoap_actions.errors import DataExistsError, InvalidInputError
 from hoap_actions.primitives.datasets import load_demonstrations
+from hoap_actions.primitives.discovery_report import effect_visible_labels
 from hoap_actions.urdf import urdf_path
 
 SHOULDER, ELBOW, WRIST, INDEX_TIP, KNUCKLE, THUMB_TIP = range(6)
@@ -88,12 +91,35 @@ def test_every_frame_is_labelled_approach_act_remove(small):
 
 
 def test_object_moves_only_while_manipulated(small):
+    """Approach and remove leave the block where it is; only when a grasp lets go (remove) does the block
+    settle onto the table from the height it was set down at (the set-down clearance)."""
     for episode in small:
         phases = episode.ground_truth.phases()
         for phase in ("approach", "remove"):
             O = episode.O[phases == phase]
-            assert np.abs(O[:, :3] - O[0, :3]).max() < 0.002, phase
+            assert np.abs(O[:, :2] - O[0, :2]).max() < 0.002, phase
             assert np.abs(yaw(O) - yaw(O[0])).max() < np.radians(1.0), phase
+            settle = PLACE_CLEARANCE + 0.001 if phase == "remove" else 0.0
+            rise = O[:, 2] - O[0, 2]
+            assert rise.max() < 0.002 and rise.min() > -0.002 - settle, phase
+
+
+def test_labels_follow_the_papers_decomposition(small):
+    """The manipulation label is what changes the block (the grasp is approach, letting go is remove),
+    decided from the demonstrator's plan: nearly every frame agrees with labels read off the block's
+    motion (measured 97-98 %: the rest are the first and last millimetre of minimum-jerk motions; the
+    old labelling, with grasp and release in the manipulation, agreed on 80-88 %), and a push starts
+    where the hand reaches the block (measured: 1 frame before it moves)."""
+    assert small.generator["labels_version"] == LABELS_VERSION == 2
+    for episode in small:
+        truth = episode.ground_truth
+        if truth.action == "approach":
+            continue
+        assert np.mean(effect_visible_labels(episode) == truth.labels) > 0.95
+        if truth.action == "push":
+            started = np.flatnonzero(manipulation(episode))[0]
+            moved = np.flatnonzero(np.linalg.norm(episode.O[:, :3] - episode.O[0, :3], axis=1) > 0.001)[0]
+            assert 0 <= moved - started <= 3
 
 
 def test_push_slides_the_block_by_its_distance(small):
