@@ -32,6 +32,12 @@ PyBullet reports. Frames are sampled at ``fps``; ``T`` differs between episodes.
 group is for evaluation only: learning code reads ``H`` and ``O`` (``Demonstrations.movement_data`` /
 ``object_data``) and never needs it.
 
+Which frames carry which phase label is the recorder's business, not the format's: the demonstrator
+labels each frame with the part of its plan it executes (approach, the manipulation, remove; the grasp
+is approach and letting go is remove, as in the paper; see :mod:`hoap_actions.envs.demonstrator`) and
+records that labelling's number in ``generator["labels_version"]`` (absent: labelling 1, from before
+the number was recorded, in which the grasp and the release belonged to the manipulation).
+
 Writing goes to a temporary file in the target directory that is renamed into place when complete,
 so an interrupted write never leaves a partial dataset under the final name.
 """

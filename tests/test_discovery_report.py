@@ -27,11 +27,12 @@ from hoap_actions.primitives.discovery_report import (
 )
 from hoap_actions.primitives.grammar import ActionGrammar
 
-# Measured on the small preset (seed 0, demonstrator of 2026-11-22): many-to-one frame accuracy 0.75-0.76
-# with a ceiling of 0.77 for any method reading only O (the hand grasps and releases a still object; the
-# approach-only episode has no object motion to end its approach), 0.98 against the effect-visible labels.
-# The thresholds leave margin for changes in the demonstrator.
-MIN_FRAME_ACCURACY = 0.70
+# Measured on the small preset (seed 0, labels_version 2: grasp in the approach, release in the remove):
+# many-to-one frame accuracy 0.879 with a ceiling of 0.887 for any method reading only O (the approach-only
+# episode has no object motion to end its approach), 0.992 against the effect-visible labels. (Labelling
+# 1, grasp and release in the manipulation: 0.75-0.76, ceiling 0.77.) The thresholds leave margin for
+# changes in the demonstrator.
+MIN_FRAME_ACCURACY = 0.83
 MIN_FRACTION_OF_CEILING = 0.93
 
 
