@@ -27,8 +27,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 RESULTS = Path(__file__).resolve().parent / "results" / "discovery_eval.json"
-HEADLINE = ("n_action_groups", "n_true_actions", "n_true_phases", "phases_missed", "frame_accuracy", "edit_score",
-            "boundary_f1", "fit_seconds", "params")
+HEADLINE = ("labels_version", "n_action_groups", "n_true_actions", "n_true_phases", "phases_missed", "frame_accuracy",
+            "edit_score", "boundary_f1", "fit_seconds", "params")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -71,19 +71,20 @@ def evaluate(path: Path, spacing: float | None, threshold: float | None) -> dict
 def print_result(r: dict) -> None:
     acc, edit, f1 = r["frame_accuracy"], r["edit_score"], r["boundary_f1"]
     print(f"\n=== {r['demonstrations_file']} (seed {r['seed']}): {r['n_demonstrations']} demonstrations, "
-          f"{r['n_frames']} frames")
+          f"{r['n_frames']} frames, labels_version {r['labels_version']}")
     print(f"spacing {r['params']['spacing']} m, threshold {r['params']['threshold']} nats: {r['n_joint_states']} "
           f"joint states, {r['n_primitives']} primitives, fit {r['fit_seconds']:.2f} s wall "
           f"({r['fit_cpu_seconds']:.2f} s CPU)")
     print(f"action groups found: {r['n_action_groups']}   true actions: {r['n_true_actions']} "
           f"({', '.join(r['true_actions'])}); {r['n_true_phases']} phase labels, missed: "
           f"{', '.join(r['phases_missed']) or 'none'}")
-    print(f"  {'group':>5} {'kind':<13} {'primitives':<34} {'frames':>6}  {'-> phase':<14} purity")
+    print(f"  {'group':>5} {'kind':<13} {'primitives':<34} {'frames':>6}  {'-> phase':<14} purity  "
+          f"(among manipulation frames)")
     for g in r["groups"]:
         ids = g["primitives"]
         prims = " ".join(map(str, ids)) if len(ids) <= 6 else f"{' '.join(map(str, ids[:5]))} ... ({len(ids)})"
         print(f"  {g['group']:>5} {g['kind']:<13} {prims:<34} {g['frames']:>6}  {g['phase'] or '-':<14} "
-              f"{g['purity']:.3f}")
+              f"{g['purity']:.3f}   " + (f"{g['manipulation_purity']:.3f}" if g["kind"] == "manipulation" else "-"))
     print("frame accuracy:")
     for name, key in (("one-to-one (Hungarian)", "one_to_one"), ("many-to-one", "many_to_one")):
         print(f"  {name:<23} primitives {acc[key + '_primitives']:.3f}   groups {acc[key + '_groups']:.3f}")

@@ -5,7 +5,11 @@ on the ``paper`` preset; for each cell: action groups found (against the true ac
 accuracy (many-to-one and one-to-one mapping, see ``discovery_report``), edit score, boundary F1.
 Heat maps in ``benchmarks/results/discovery_sweep.png``; every number in ``discovery_sweep.json``.
 A cell is marked when it recovers the paper's Fig. 7: as many groups as true actions, every true
-phase recovered and every manipulation group pure (> 99 % of its frames from one phase).
+phase recovered and every manipulation group mapped to a manipulation and pure (> 99 % of its frames
+labelled with a manipulation from one phase). Frames a group takes from approach or remove at its
+edges (e.g. a move's group runs on while the released block settles its 2 mm set-down clearance,
+which the plan-based labels give to remove) are boundary errors, counted by frame accuracy and
+boundary F1, not mixed actions.
 
     python benchmarks/discovery_sweep.py [--seeds 0 1] [--spacings ...] [--thresholds ...]
 """
@@ -39,8 +43,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def recovers_fig7(result: dict) -> bool:
-    """As many groups as true actions, no phase missed, every manipulation group pure."""
-    pure = all(g["purity"] > 0.99 for g in result["groups"] if g["kind"] == "manipulation")
+    """As many groups as true actions, no phase missed, every manipulation group one manipulation (module docstring)."""
+    pure = all(
+        g["phase"] not in (None, "approach", "remove") and g["manipulation_purity"] > 0.99
+        for g in result["groups"] if g["kind"] == "manipulation"
+    )
     return result["n_action_groups"] == result["n_true_actions"] and not result["phases_missed"] and pure
 
 
@@ -65,6 +72,8 @@ def sweep(path: Path, spacings: list[float], thresholds: list[float]) -> list[di
                 "n_action_groups": r["n_action_groups"],
                 "n_true_actions": r["n_true_actions"],
                 "phases_missed": r["phases_missed"],
+                "min_manipulation_group_purity": min(
+                    (g["purity"] for g in r["groups"] if g["kind"] == "manipulation"), default=1.0),
                 "fig7_recovered": recovers_fig7(r),
                 "frame_accuracy_many_to_one": r["frame_accuracy"]["many_to_one_groups"],
                 "frame_accuracy_one_to_one": r["frame_accuracy"]["one_to_one_groups"],
@@ -121,8 +130,8 @@ def plot(per_seed: dict[int, list[dict]], spacings: list[float], thresholds: lis
             ax.set_ylabel("spacing (cm)")
             ax.set_title(f"seed {seed}: {title}", fontsize=9)
     ceiling = np.mean([c["frame_accuracy_ceiling"] for cells in per_seed.values() for c in cells[:1]])
-    fig.suptitle(f"Primitive discovery on the paper preset: red box = Fig. 7 recovered "
-                 f"(groups = true actions, all pure); frame-accuracy ceiling from O alone ~{ceiling:.3f}", fontsize=10)
+    fig.suptitle(f"Primitive discovery on the paper preset: red box = Fig. 7 recovered (groups = true actions, "
+                 f"each one manipulation); frame-accuracy ceiling from O alone ~{ceiling:.3f}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

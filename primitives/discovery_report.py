@@ -178,7 +178,9 @@ def evaluate_discovery(
     Returns a JSON-ready dict (module docstring): the dataset's ``labels_version`` (1 if it records
     none), counts (true actions are the distinct ground-truth
     (action, direction) pairs that move the object, plus approach and remove: the paper preset has
-    12, its ``rotate`` phase label covering both turning directions), the groups and the phase each maps to,
+    12, its ``rotate`` phase label covering both turning directions), the groups and the phase each maps to
+    (with ``purity``, the share of its frames from that phase, and ``manipulation_purity``, the same among
+    its frames labelled with a manipulation: below 1 only if it mixes manipulations),
     frame accuracies (one-to-one and many-to-one, primitives and groups, the effect-visible
     ceiling), edit scores and boundary F1 at each tolerance (frames).
     """
@@ -200,11 +202,13 @@ def evaluate_discovery(
     present = sorted({int(c) for t in true for c in np.unique(t)})
 
     all_groups, all_true = np.concatenate(groups), np.concatenate(true)
+    acting = np.array([name not in (APPROACH, REMOVE) for name in names])
     group_rows = []
     for g in range(int(group_of.max()) + 1):
         in_group = all_groups == g
         counts = np.bincount(all_true[in_group], minlength=len(names))
         members = np.flatnonzero(group_of == g)
+        acts = counts[acting]
         group_rows.append(
             {
                 "group": g,
@@ -213,6 +217,8 @@ def evaluate_discovery(
                 "frames": int(in_group.sum()),
                 "phase": names[to_phase[g]] if g in to_phase else None,
                 "purity": float(counts.max() / max(1, counts.sum())),
+                # of its frames labelled with a manipulation, the share of the most common one (1 if none)
+                "manipulation_purity": float(acts.max() / acts.sum()) if acts.sum() else 1.0,
             }
         )
     recovered = sorted({names[to_phase[g]] for g in to_phase})
