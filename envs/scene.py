@@ -43,6 +43,12 @@ HOLE_LOCAL_XY = np.array([[0.0, (j - (N_HOLES - 1) / 2) * HOLE_PITCH] for j in r
 BOARD_YAW_RANGE = (-math.pi / 6, math.pi / 6)  # rad; keeps hole 0 on the robot's right
 MIN_PEG_SPACING = 0.04  # m, peg centre to peg centre in sampled layouts: room for the hand
 MIN_PEG_BOARD_GAP = 0.04  # m, peg centre to the board's outline in sampled layouts
+# A peg grasped from above has the forearm behind it, pointing back to world.FOREARM_PIVOT_XY: no
+# other peg may stand in that strip (forearm half-width 18 mm + peg radius + 5 mm, widening with the
+# heading's 15-degree uncertainty), or the forearm comes down on it.
+FOREARM_LENGTH = 0.20  # m, from the grasp point back along the forearm
+FOREARM_STRIP_HALF_WIDTH = 0.018 + PEG_RADIUS + 0.005  # m
+FOREARM_HEADING_TOLERANCE = math.tan(math.radians(15.0))
 TABLE_MARGIN = 0.005  # m, the board stays this far inside the table's edges
 PHYSICAL_GAP = 0.001  # m, the least gap :meth:`Scene.apply` accepts between any two objects
 MAX_LAYOUT_TRIES = 1000
@@ -54,7 +60,9 @@ CAMERAS: dict[str, Camera] = {
         eye=(0.02, 0.0, 0.75), target=(0.02, 0.0, 0.0), up=(1.0, 0.0, 0.0), fov_deg=22.0, near=0.3, far=1.2
     ),
     # Across the table, facing the robot: head to feet, both arms, the table top and the board.
-    "front": Camera(eye=(0.8, 0.05, 0.25), target=(-0.15, 0.05, 0.06), fov_deg=45.0, near=0.1, far=2.0),
+    "front": Camera(
+        eye=(0.8, world.ROBOT_FEET_XY[1], 0.25), target=(*world.ROBOT_FEET_XY, 0.06), fov_deg=45.0, near=0.1, far=2.0
+    ),
 }
 
 
@@ -114,7 +122,10 @@ class Scene:
 
     # ------------------------------------------------------------------ layouts
     def sample_layout(self, rng: np.random.Generator) -> Layout:
-        """Draw a layout: board centre and pegs inside the work area, pegs apart, board on the table.
+        """Draw a layout: board centre and pegs inside the work area, pegs apart, board on the table,
+        every hole within the right hand's reach (``world.HAND_REACH_XY``) and no peg in the strip the
+        forearm sweeps when it comes down on another (:func:`in_forearm_strip`): every peg can be
+        grasped and put in every hole.
 
         Rejection sampling whose draws depend on nothing but ``rng``: the same Generator state gives the
         same layout.
@@ -125,11 +136,17 @@ class Scene:
             yaw = float(rng.uniform(*BOARD_YAW_RANGE))
             if not _board_on_table(board_xy, yaw, TABLE_MARGIN):
                 continue
+            holes_xy = np.asarray(board_xy) + HOLE_LOCAL_XY @ _rotation(yaw).T
+            if not np.all(within_reach(holes_xy)):
+                continue
             pegs: list[np.ndarray] = []
             for _ in range(50 * self.n_pegs):
                 xy = rng.uniform(low, high)
                 if _distance_to_board(xy, board_xy, yaw) >= MIN_PEG_BOARD_GAP and all(
-                    np.hypot(*(xy - other)) >= MIN_PEG_SPACING for other in pegs
+                    np.hypot(*(xy - other)) >= MIN_PEG_SPACING
+                    and not in_forearm_strip(xy, other)
+                    and not in_forearm_strip(other, xy)
+                    for other in pegs
                 ):
                     pegs.append(xy)
                     if len(pegs) == self.n_pegs:
@@ -220,6 +237,27 @@ class Scene:
         centre, yaw = self.board_pose()
         local = _rotation(yaw).T @ (bottom[:2] - centre) - HOLE_LOCAL_XY[j]
         return bool(np.all(np.abs(local) <= HOLE_SIZE / 2))
+
+
+def within_reach(xy: np.ndarray) -> np.ndarray:
+    """Whether points ``(..., 2)`` of the table plane lie inside ``world.HAND_REACH_XY``."""
+    xy = np.asarray(xy, dtype=float)
+    a = world.HAND_REACH_XY
+    edges = np.roll(a, -1, axis=0) - a
+    rel = xy[..., None, :] - a  # (..., K, 2)
+    cross = edges[:, 0] * rel[..., 1] - edges[:, 1] * rel[..., 0]
+    return np.all(cross >= 0.0, axis=-1)
+
+
+def in_forearm_strip(xy: np.ndarray, grasped: np.ndarray) -> bool:
+    """Whether a peg at ``xy`` stands where the forearm comes down when the hand grasps the peg at
+    ``grasped`` from above: behind it, towards ``world.FOREARM_PIVOT_XY``, within the strip's width."""
+    back = world.FOREARM_PIVOT_XY - np.asarray(grasped, dtype=float)
+    back /= np.linalg.norm(back)
+    rel = np.asarray(xy, dtype=float) - np.asarray(grasped, dtype=float)
+    along = float(rel @ back)
+    across = abs(float(rel[0] * back[1] - rel[1] * back[0]))
+    return 0.0 < along <= FOREARM_LENGTH and across < FOREARM_STRIP_HALF_WIDTH + FOREARM_HEADING_TOLERANCE * along
 
 
 def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:

@@ -11,9 +11,19 @@ import numpy as np
 TABLE_HEIGHT = 0.26  # m, floor to table top: the floor is the plane z = -TABLE_HEIGHT
 TABLE_NEAR_EDGE_X = -0.08  # m, the table edge facing the robot
 TABLE_SIZE = (0.30, 0.50, 0.02)  # m, depth (x), width (y), top thickness
-ROBOT_FEET_XY = (-0.15, 0.05)  # m, midpoint between the robot's ankles on the floor; it faces +x
+ROBOT_FEET_XY = (-0.18, 0.05)  # m, midpoint between the robot's ankles on the floor; it faces +x
 WORK_AREA_LOW = np.array([-0.05, -0.09])  # m, (x, y) corner of the area where pegs and holes lie
 WORK_AREA_HIGH = np.array([0.05, 0.09])
+
+# Where the right hand can work from above (tcp 7 cm over the table, the peg axis vertical), measured
+# with the whole-body IK's reachability probe on a 1 cm grid and shrunk by 1 cm; tests/test_scene.py
+# checks it against the IK. The far left corner is out of reach: the right arm must cross the body.
+HAND_REACH_XY = np.array(
+    [[-0.07, -0.15], [0.12, -0.15], [0.12, 0.03], [0.09, 0.06], [0.07, 0.08], [0.04, 0.10], [0.02, 0.11], [-0.07, 0.11]]
+)  # m, convex polygon, counter-clockwise
+# The right forearm, over a peg it grasps from above, points back towards about this point (the
+# IK's hand headings over the work area: 6 degrees rms, at most 20 degrees off, measured).
+FOREARM_PIVOT_XY = np.array(ROBOT_FEET_XY) + np.array([0.043, -0.114])
 
 FLOOR_Z = -TABLE_HEIGHT
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from matplotlib.path import Path
 import pytest
 
 from hoap_actions.envs import world
@@ -12,6 +13,10 @@ from hoap_actions.envs.scene import (
     BOARD_SIZE,
     BOARD_YAW_RANGE,
     CHAMFER,
+    FOREARM_HEADING_TOLERANCE,
+    FOREARM_LENGTH,
+    FOREARM_STRIP_HALF_WIDTH,
+    HOLE_LOCAL_XY,
     HOLE_SIZE,
     N_HOLES,
     PEG_COLOURS,
@@ -220,6 +225,16 @@ def check_layout(layout: Layout, n_pegs: int) -> None:
         for other in pegs[:i]:
             assert np.linalg.norm(peg - other) >= 0.04
     assert len(set(layout.hole_of_peg)) == n_pegs and set(layout.hole_of_peg) <= set(range(N_HOLES))
+    holes = board + HOLE_LOCAL_XY @ np.array([[c, s], [-s, c]])
+    assert np.all(Path(world.HAND_REACH_XY).contains_points(holes, radius=-1e-9)), "a hole out of the hand's reach"
+    for i, grasped in enumerate(pegs):
+        back = (world.FOREARM_PIVOT_XY - grasped) / np.linalg.norm(world.FOREARM_PIVOT_XY - grasped)
+        side = np.array([-back[1], back[0]])
+        far = FOREARM_STRIP_HALF_WIDTH + FOREARM_HEADING_TOLERANCE * FOREARM_LENGTH
+        strip = Path([grasped + FOREARM_STRIP_HALF_WIDTH * side, grasped + FOREARM_LENGTH * back + far * side,
+                      grasped + FOREARM_LENGTH * back - far * side, grasped - FOREARM_STRIP_HALF_WIDTH * side])
+        others = np.delete(pegs, i, axis=0)
+        assert not np.any(strip.contains_points(others)), f"a peg stands where the forearm grasps peg {i}"
 
 
 def test_200_sampled_layouts_are_valid_and_varied(scene):
