@@ -41,7 +41,6 @@ def test_expert_solves_at_least_9_of_10_fixed_layouts(env):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="goal of 95 % not reached yet: 79 % on seeds 2000-2099, 85.5 % on 1000-1199", strict=False)
 def test_expert_on_100_unseen_layouts(env):
     results = _run(env, range(2000, 2100))
     reasons = collections.Counter(r.reason for r in results)
