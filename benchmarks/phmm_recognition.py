@@ -132,7 +132,7 @@ def plot(path: Path, per_class: list[dict], accuracy: float, phi_median: float) 
     import numpy as np
 
     ids = [c["class"] for c in per_class]
-    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(max(8, 0.22 * len(ids)), 6), sharex=True, constrained_layout=True)
+    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(max(8, 0.22 * len(ids)), 7), sharex=True, constrained_layout=True)
     x = np.arange(len(ids))
     ax0.bar(x, [100 * c["accuracy"] for c in per_class], color="tab:blue")
     ax0.axhline(100 * GOAL_ACCURACY, color="red", linestyle="--", linewidth=1, label="goal 95 %")
@@ -148,7 +148,7 @@ def plot(path: Path, per_class: list[dict], accuracy: float, phi_median: float) 
     ax1.set_ylabel("phi error (cm)")
     ax1.set_yscale("log")
     ax1.legend(fontsize=8)
-    ax1.set_xticks(x, [f"{c['class']}\n{c['action']}\nn={c['n_test']}" for c in per_class], fontsize=5, rotation=90)
+    ax1.set_xticks(x, [f"{c['class']} {c['action']} (n={c['n_test']})" for c in per_class], fontsize=6, rotation=90)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -160,6 +160,7 @@ def main(argv: list[str] | None = None) -> dict:
         os.environ[var] = str(args.threads)
 
     import numpy as np
+    from tqdm import tqdm
 
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
@@ -192,7 +193,8 @@ def main(argv: list[str] | None = None) -> dict:
     phmms = {cid: m.model for cid, m in models.items()}
     rows = []
     unknown = {"segments": 0, "frames": 0}
-    for episode, labels in zip(test, discovery.predict([e.O for e in test])):
+    held_out = zip(test, discovery.predict([e.O for e in test]))
+    for episode, labels in tqdm(held_out, total=len(test), desc="recognising held-out demonstrations", unit="demo"):
         for cid, start, end in held_out_segments(labels):
             if cid == UNKNOWN:
                 unknown["segments"] += 1
