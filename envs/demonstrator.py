@@ -36,6 +36,9 @@ and back to rest with the arm hanging beside the chair.
   forward/backward: palm to the body with the fingers pointing left, or palm forward with them
   pointing right, level or 45 degrees down; grasp: fingers along each of the block's four face normals)
   the one a static IK reaches with the least residual and torso lean, at the start and end of the act.
+  A bare approach (the ``approach-grid`` reaching experiment) always takes the face whose normal points
+  most away from the body, as a subject repeating one reach does: picking by comfort there switches
+  the grasp by 90 degrees at the table's near corners, a jump no smooth model of reaching follows.
 - Inverse kinematics: placo, fixed base (``mask_fbase(True)``), joint and velocity limits, a few QP
   steps per frame; soft position task on the site; soft orientation task that starts from the
   orientation the hand takes when left free and turns smoothly to the one needed (so the hand does not
@@ -435,7 +438,7 @@ class Demonstrator:
         if task.action == "push":
             away = self._push(task, start)
         elif task.action == "approach":
-            self._reach("grasp_site", *self._grasp_pose(start, 0.0, np.zeros(3)), FINGERS_OPEN)
+            self._reach("grasp_site", *self._grasp_pose(start, 0.0, np.zeros(3), forward=True), FINGERS_OPEN)
             self._hold(0.15, "approach")
         else:
             self._grasp_and_carry(task, start)
@@ -609,7 +612,9 @@ class Demonstrator:
         self._hold(0.25, "remove")
 
     # ------------------------------------------------------------------ building blocks
-    def _grasp_pose(self, start: np.ndarray, turn: float, shift: np.ndarray) -> tuple[np.ndarray, Rotation]:
+    def _grasp_pose(
+        self, start: np.ndarray, turn: float, shift: np.ndarray, forward: bool = False
+    ) -> tuple[np.ndarray, Rotation]:
         """Pinch pose over the block: palm down, fingers along one of the block's face normals, the one
         that is most comfortable both at the grasp and after turning the hand by ``turn`` (rad) and
         moving it by ``shift`` (m)."""
@@ -623,7 +628,11 @@ class Demonstrator:
                 (position + shift, turned * rotation), "grasp_site"
             )
 
-        yaw = min((block_yaw + k * np.pi / 2.0 for k in (-1, 0, 1, 2)), key=cost)
+        candidates = [block_yaw + k * np.pi / 2.0 for k in (-1, 0, 1, 2)]
+        if forward:  # the fingers along the face normal that points most away from the body
+            yaw = min(candidates, key=lambda y: abs(np.angle(np.exp(1j * y))))
+        else:
+            yaw = min(candidates, key=cost)
         self.ik.reset(REST_POSTURE)
         rotation = hand_rotation([np.cos(yaw), np.sin(yaw), 0.0], [0.0, 0.0, 1.0])
         return position + np.clip(self._rng.normal(0.0, 0.001, 3), -0.002, 0.002), rotation
