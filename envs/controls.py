@@ -37,6 +37,9 @@ class JointDeltaController:
         self.last_clipped = False
         self._target = np.array(robot.home_posture, dtype=float)
 
+    def start_episode(self) -> None:
+        """Episodes begin in the home posture the freshly restored world already has."""
+
     def reset(self) -> None:
         """Controlled joints start where they are; the others hold the home posture."""
         self._target = np.array(self.robot.home_posture, dtype=float)
@@ -73,8 +76,8 @@ class EEDeltaController:
 
     Episodes start from :func:`~hoap_actions.controllers.hand_control.rest_posture` (left arm raised,
     right forearm tilted up) rather than the home posture, whose level right forearm lies across the
-    pegs' tops: the controller poses the robot there when it is reset on the freshly restored world,
-    before the env places the layout.
+    pegs' tops: :meth:`start_episode` poses the robot there on the freshly restored world, before the
+    env places the layout.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -84,11 +87,12 @@ class EEDeltaController:
         self.last_clipped = False
         self.desired = np.zeros(3)
 
+    def start_episode(self) -> None:
+        """On the freshly restored world, pose the robot in the rest posture episodes begin in."""
+        self.robot.reset(rest_posture(self.robot))
+
     def reset(self) -> None:
-        """Hold the hand where it is; the gripper keeps its current target. On the freshly restored
-        world (robot exactly at home), first pose the robot in the rest posture."""
-        if np.array_equal(self.robot.joint_positions(), self.robot.home_posture):
-            self.robot.reset(rest_posture(self.robot))
+        """Hold the hand where it is; the gripper keeps its current target."""
         self.hand.reset()
         self.desired = self.hand.reference.copy()
         self.last_clipped = False

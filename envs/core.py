@@ -95,7 +95,7 @@ class HoapEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         super().reset(seed=seed)
         self.sim.restore_state(self._initial_state)
-        self.controller.reset()
+        self.controller.start_episode()
         self.task.reset(self.np_random)
         self.robot.set_targets(self.robot.joint_positions())
         self.sim.step(SETTLE_STEPS)
