@@ -8,6 +8,7 @@ import gymnasium
 import numpy as np
 
 from hoap_actions.controllers.scripted_expert import ScriptedExpert
+from hoap_actions.errors import InvalidInputError
 
 
 class RandomPolicy:
@@ -30,9 +31,10 @@ class RandomPolicy:
 POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert}  # scripted: PegInsert with control_mode="ee_delta"
 
 
-def make_policy(name: str, env: gymnasium.Env):
-    """The policy called ``name`` (one of :data:`POLICIES`) for ``env``."""
+def policy_class(name: str) -> type:
+    """The policy class called ``name`` (one of :data:`POLICIES`); its ``control_mode`` is the env's."""
     try:
-        return POLICIES[name](env)
+        return POLICIES[name]
     except KeyError:
-        raise ValueError(f"unknown policy {name!r}; accepted: {sorted(POLICIES)}") from None
+        raise InvalidInputError(f"unknown policy {name!r}; accepted: {sorted(POLICIES)}") from None
+

@@ -9,23 +9,21 @@ import sys
 from pathlib import Path
 
 from hoap_actions.episodes import run_episodes, summarise
-from hoap_actions.errors import HoapActionsError, InvalidInputError
+from hoap_actions.errors import HoapActionsError
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from hoap_actions.controllers.policies import POLICIES, make_policy
+    from hoap_actions.controllers.policies import policy_class
 
-    if args.policy not in POLICIES:
-        raise InvalidInputError(f"unknown policy {args.policy!r}; accepted: {sorted(POLICIES)}")
+    policy = policy_class(args.policy)
     results = run_episodes(
         env_id=args.env,
-        policy_factory=lambda env: make_policy(args.policy, env),
+        policy_factory=policy,
         episodes=args.episodes,
         seed=args.seed,
         video=args.video,
         snapshot=args.snapshot,
-        # a policy may need a control mode (the scripted expert acts through ee_delta)
-        env_kwargs={"control_mode": getattr(POLICIES[args.policy], "control_mode", "joint_delta")},
+        env_kwargs={"control_mode": policy.control_mode},  # the scripted expert acts through ee_delta
     )
     summary = summarise(results)
     print(

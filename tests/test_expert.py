@@ -13,6 +13,7 @@ import gymnasium
 import numpy as np
 import pytest
 
+from hoap_actions.controllers.policies import policy_class
 from hoap_actions.controllers.scripted_expert import ScriptedExpert, footprint_clearance, thumb_outline
 from hoap_actions.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
@@ -47,6 +48,13 @@ def test_expert_on_100_unseen_layouts(env):
     assert reasons["fell"] == 0, reasons
     assert set(reasons) <= FAILURE_REASONS | {"success"}, reasons
     assert np.mean([r.success for r in results]) >= 0.95, reasons
+
+
+def test_policies_are_found_by_name_with_their_control_mode():
+    assert policy_class("scripted") is ScriptedExpert and ScriptedExpert.control_mode == "ee_delta"
+    assert policy_class("random").control_mode == "joint_delta"
+    with pytest.raises(InvalidInputError, match=r"unknown policy 'nope'; accepted: \['random', 'scripted'\]"):
+        policy_class("nope")
 
 
 def test_expert_needs_the_ee_delta_control_mode():
