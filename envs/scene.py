@@ -136,8 +136,7 @@ class Scene:
             yaw = float(rng.uniform(*BOARD_YAW_RANGE))
             if not _board_on_table(board_xy, yaw, TABLE_MARGIN):
                 continue
-            holes_xy = np.asarray(board_xy) + HOLE_LOCAL_XY @ _rotation(yaw).T
-            if not np.all(within_reach(holes_xy)):
+            if not np.all(within_reach(_holes_xy(board_xy, yaw))):
                 continue
             pegs: list[np.ndarray] = []
             for _ in range(50 * self.n_pegs):
@@ -210,8 +209,7 @@ class Scene:
 
     def hole_positions(self) -> np.ndarray:
         """World centres ``(N_HOLES, 3)`` (m) of the hole openings, on the board's top surface."""
-        centre, yaw = self.board_pose()
-        xy = centre + HOLE_LOCAL_XY @ _rotation(yaw).T
+        xy = _holes_xy(*self.board_pose())
         return np.c_[xy, np.full(N_HOLES, self.board_surface_z)]
 
     def peg_pose(self, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -267,6 +265,11 @@ def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
 def _rotation(yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
     return np.array([[c, -s], [s, c]])
+
+
+def _holes_xy(board_xy: np.ndarray, yaw: float) -> np.ndarray:
+    """Table-plane centres ``(N_HOLES, 2)`` of the holes of a board at ``board_xy`` turned by ``yaw``."""
+    return np.asarray(board_xy) + HOLE_LOCAL_XY @ _rotation(yaw).T
 
 
 def _board_corners(board_xy: np.ndarray, yaw: float) -> np.ndarray:
