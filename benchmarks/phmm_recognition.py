@@ -39,13 +39,15 @@ Writes ``benchmarks/results/phmm_recognition.json`` and ``.png``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import numeric_environment, write_json  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 GOAL_ACCURACY = 0.95
@@ -198,12 +200,13 @@ def main(argv: list[str] | None = None) -> dict:
     unknown = {"segments": 0, "frames": 0}
     held_out = zip(test, discovery.predict([e.O for e in test]))
     for episode, labels in tqdm(held_out, total=len(test), desc="recognising held-out demonstrations", unit="demo"):
+        episode_X = observations(episode.H, args.velocity)
         for cid, start, end in held_out_segments(labels):
             if cid == UNKNOWN:
                 unknown["segments"] += 1
                 unknown["frames"] += end - start
                 continue
-            X = observations(episode.H, args.velocity)[start:end]
+            X = episode_X[start:end]
             rec = recognize(X, phmms, n_restarts=args.n_restarts)
             if discovery.primitive_kinds_[cid] == MANIPULATION:
                 truth = np.concatenate([episode.O[start, :3], episode.O[end - 1, :3]])
@@ -277,10 +280,8 @@ def main(argv: list[str] | None = None) -> dict:
     png = args.output.with_suffix(".png")
     plot(png, [c for c in per_class if c["n_test"]], accuracy, float(np.median(errors)))
     result["figure"] = png.name
-    result["environment"] = {"blas_threads": args.threads, "cpu_count": os.cpu_count(),
-                             "python": sys.version.split()[0], "numpy": np.__version__}
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    result["environment"] = numeric_environment(args.threads)
+    write_json(args.output, result)
     print(f"wrote {args.output} and {png}")
     return result
 

@@ -33,11 +33,13 @@ Writes ``benchmarks/results/phmm_synthesis_error.json`` and ``.png`` (and ``_dia
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import numeric_environment, write_json  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 N_STATES = 40
@@ -290,11 +292,8 @@ def main(argv: list[str] | None = None) -> dict:
         plot_maps(diag_png.with_name(diag_png.stem + "_elbow.png"), extra[-1:], axes,
                   "Demonstrator's arm strategy", unit="elbow peak height (cm)")
         result["diagnosis_figures"] = [diag_png.name, diag_png.stem + "_elbow.png"]
-    result["environment"] = {"blas_threads": args.threads, "cpu_count": os.cpu_count(),
-                             "python": sys.version.split()[0], "numpy": np.__version__,
-                             "runtime_s": round(time.perf_counter() - started, 1)}
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    result["environment"] = {**numeric_environment(args.threads), "runtime_s": round(time.perf_counter() - started, 1)}
+    write_json(args.output, result)
     print(f"wrote {args.output} and {png}")
     return result
 
