@@ -13,11 +13,12 @@ and :meth:`sample` use only those. Smoothing changes probabilities only (:meth:`
 from __future__ import annotations
 
 import os
-from collections.abc import Hashable, Sequence
+from collections.abc import Hashable, Mapping, Sequence
 
 import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.primitives.hmm_math import viterbi
 from hoap_actions.primitives.json_files import read_json_model, write_json_model
 
 FORMAT_VERSION = 1
@@ -124,6 +125,40 @@ class ActionGrammar:
             row = self.transmat_[0]
         targets = [*self.symbols_, END]
         return {t: float(p) for t, p in zip(targets, row[1:]) if p > 0}
+
+    def decode(self, segment_scores: Sequence[Mapping[Symbol, float]]) -> tuple[list[Symbol], float]:
+        """Most probable class sequence for consecutive segments, given each segment's class log-likelihoods.
+
+        Maximises ``log P(sequence | grammar) + sum_i segment_scores[i][class_i]`` by Viterbi over the
+        automaton (start and end transitions included), so a segment that fits several classes about
+        equally well (e.g. the first and second piece of one push) gets the one the grammar allows
+        after its neighbours.  Classes missing from a mapping score ``-inf``; classes the grammar does
+        not know are ignored.  Returns ``(classes, total log-score)``.
+        """
+        self._check_fitted()
+        if isinstance(segment_scores, Mapping) or not len(segment_scores):
+            raise InvalidInputError("segment_scores must be a non-empty list with one {class: log-likelihood} "
+                                    "mapping per segment")
+        n = len(self.symbols_)
+        log_frame = np.full((len(segment_scores), n), -np.inf)
+        for i, scores in enumerate(segment_scores):
+            if not isinstance(scores, Mapping):
+                raise InvalidInputError(f"segment_scores[{i}] must map classes to log-likelihoods, got {scores!r}")
+            for k, symbol in enumerate(self.symbols_):
+                value = float(scores.get(symbol, -np.inf))
+                if np.isnan(value) or value == np.inf:
+                    raise InvalidInputError(f"segment_scores[{i}][{symbol!r}] is {value}; log-likelihoods must be "
+                                            "finite or -inf")
+                log_frame[i, k] = value
+        with np.errstate(divide="ignore"):
+            log_t = np.log(self.transmat_)
+        best, path = viterbi(log_t[0, 1 : n + 1], log_t[1 : n + 1, 1 : n + 1], log_frame, [len(log_frame)],
+                             log_endprob=log_t[1 : n + 1, n + 1])
+        if not np.isfinite(best[0]):
+            raise InvalidInputError(f"no class sequence of length {len(log_frame)} is both grammatical and has "
+                                    "finite segment scores; fit the grammar with smoothing > 0 to allow unseen "
+                                    "transitions")
+        return [self.symbols_[k] for k in path], float(best[0])
 
     def sample(self, random_state: int | np.random.Generator | None = None) -> list[Symbol]:
         """Draw one grammatical class sequence: walk the seen transitions with their (smoothed) probabilities.

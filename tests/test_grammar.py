@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections import Counter
@@ -156,3 +157,50 @@ def test_bad_smoothing_prefix_and_not_fitted(grammar):
         with pytest.raises(NotFittedError):
             call(ActionGrammar())
 
+
+
+PIECES = [["approach", "push-1", "push-2", "push-3", "remove"]] * 3 + [["approach", "move", "remove"]] * 2
+
+
+def test_decode_agrees_with_brute_force_over_every_sequence():
+    grammar = ActionGrammar(smoothing=0.3).fit(PIECES + [["approach", "push-1", "remove"]])
+    rng = np.random.default_rng(0)
+    for length in (1, 2, 3, 4):
+        scores = [dict(zip(grammar.symbols_, rng.normal(0.0, 3.0, len(grammar.symbols_)))) for _ in range(length)]
+        best = max(
+            (list(seq) for seq in itertools.product(grammar.symbols_, repeat=length)),
+            key=lambda seq: grammar.log_probability(seq) + sum(s[c] for s, c in zip(scores, seq)),
+        )
+        decoded, total = grammar.decode(scores)
+        assert decoded == best
+        assert total == pytest.approx(grammar.log_probability(best) + sum(s[c] for s, c in zip(scores, best)))
+
+
+def test_decode_lets_the_grammar_separate_look_alike_pieces():
+    grammar = ActionGrammar().fit(PIECES)
+    pieces = ["push-1", "push-2", "push-3"]
+    # every piece of the push looks most like the third piece; the move is far less likely
+    look_alike = {"push-1": -10.0, "push-2": -10.0, "push-3": -9.5, "move": -40.0, "approach": -80.0, "remove": -80.0}
+    scores = [{"approach": 0.0, "remove": -50.0}, look_alike, look_alike, look_alike, {"remove": 0.0, "approach": -50.0}]
+    isolated = [max(s, key=s.get) for s in scores]
+    assert isolated[1:4] == ["push-3"] * 3
+    decoded, _ = grammar.decode(scores)
+    assert decoded == ["approach", *pieces, "remove"]
+
+
+def test_decode_bad_input(grammar):
+    with pytest.raises(InvalidInputError, match="non-empty list"):
+        grammar.decode([])
+    with pytest.raises(InvalidInputError, match="non-empty list"):
+        grammar.decode({"approach": 0.0})
+    with pytest.raises(InvalidInputError, match="must map classes"):
+        grammar.decode([[0.0, 1.0]])
+    with pytest.raises(InvalidInputError, match="finite or -inf"):
+        grammar.decode([{"approach": float("nan")}])
+    # the strict grammar has no two-class sequence: say so instead of returning a meaningless path
+    with pytest.raises(InvalidInputError, match="smoothing > 0"):
+        grammar.decode([{"approach": 0.0}, {"remove": 0.0}])
+    assert ActionGrammar(smoothing=0.1).fit(DEMOS).decode([{"approach": 0.0}, {"remove": 0.0}])[0] == ["approach",
+                                                                                                        "remove"]
+    with pytest.raises(NotFittedError):
+        ActionGrammar().decode([{"a": 0.0}])
