@@ -43,6 +43,7 @@ import os
 import sys
 import time
 from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,7 +72,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--n-restarts", type=int, default=5, help="phi restarts in recognize")
     parser.add_argument("--velocity", action=argparse.BooleanOptionalAction, default=True,
                         help="append marker displacements over 0.1 s (default: on)")
-    parser.add_argument("--threads", type=int, default=1, help="BLAS threads")
+    parser.add_argument("--threads", type=int, default=1, help="BLAS threads per process")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count(), help="worker processes for recognition")
+    parser.add_argument("--scores", type=Path, help="also save every segment's per-class log-likelihoods (.npz)")
     parser.add_argument("--output", type=Path, default=RESULTS / "phmm_recognition.json")
     return parser.parse_args(argv)
 
@@ -121,6 +124,21 @@ def train_class(movements, effects, args) -> tuple[ClassModel, dict]:
                           n_iter=100, tol=1e-3, random_state=0)
     model.fit(np.concatenate(movements), lengths, (effects - centre) @ basis)
     return ClassModel(model, centre, basis), {"n_states": n_states, "phi_dim": basis.shape[1]}
+
+
+_WORKER: dict = {}
+
+
+def _start_worker(phmms: dict, n_restarts: int) -> None:
+    """Give a worker process the class models once, not with every episode."""
+    _WORKER.update(phmms=phmms, n_restarts=n_restarts)
+
+
+def _recognise_segments(segments: list) -> list:
+    """:func:`recognize` each segment of one held-out episode (runs in a worker process)."""
+    from hoap_actions.primitives.parametric_hmm import recognize
+
+    return [recognize(X, _WORKER["phmms"], n_restarts=_WORKER["n_restarts"]) for X in segments]
 
 
 def effect_error_cm(model: ClassModel, phi, truth) -> float:
@@ -199,7 +217,6 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.errors import InvalidInputError
     from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
     from hoap_actions.primitives.grammar import ActionGrammar
-    from hoap_actions.primitives.parametric_hmm import recognize
 
     train_seeds = [0, *range(2, len(args.train) + 1)]  # seed 1 is the held-out recording
     for path, seed in [*zip(args.train, train_seeds), (args.test, 1)]:
@@ -231,36 +248,48 @@ def main(argv: list[str] | None = None) -> dict:
     rows = []
     unknown = {"segments": 0, "frames": 0}
     unparsed = Counter()  # per smoothing: held-out demonstrations without a grammatical decoding
-    held_out = zip(test, discovery.predict([e.O for e in test]))
-    for episode, labels in tqdm(held_out, total=len(test), desc="recognising held-out demonstrations", unit="demo"):
-        episode_X = observations(episode.H, args.velocity)
-        episode_rows, recognitions = [], []
-        for cid, start, end in held_out_segments(labels):
+    pieces = []  # per held-out episode: (class, start, end) of each parsed run
+    for labels in discovery.predict([e.O for e in test]):
+        runs = held_out_segments(labels)
+        for cid, start, end in runs:
             if cid == UNKNOWN:
                 unknown["segments"] += 1
                 unknown["frames"] += end - start
-                continue
-            X = episode_X[start:end]
-            rec = recognize(X, phmms, n_restarts=args.n_restarts)
+        pieces.append([run for run in runs if run[0] != UNKNOWN])
+    inputs = [observations(e.H, args.velocity) for e in test]
+    jobs = [[inputs[i][start:end] for _, start, end in runs] for i, runs in enumerate(pieces)]
+    with ProcessPoolExecutor(args.jobs, initializer=_start_worker, initargs=(phmms, args.n_restarts)) as pool:
+        results = list(tqdm(pool.map(_recognise_segments, jobs), total=len(jobs),
+                            desc="recognising held-out demonstrations", unit="demo"))
+    scores = []  # (episode, start, end, class, log-likelihood per class) for --scores
+    for i, (episode, runs, recognitions) in enumerate(zip(test, pieces, results)):
+        episode_rows, truths = [], []
+        for (cid, start, end), rec in zip(runs, recognitions):
             if discovery.primitive_kinds_[cid] == MANIPULATION:
                 truth = np.concatenate([episode.O[start, :3], episode.O[end - 1, :3]])
             else:
-                truth = np.concatenate([X[0, marker], X[-1, marker]])
+                truth = np.concatenate([inputs[i][start, marker], inputs[i][end - 1, marker]])
             episode_rows.append({"class": cid, "kind": discovery.primitive_kinds_[cid], "recognised": int(rec.label),
                                  "frames": end - start,
                                  "phi_error_cm": effect_error_cm(models[rec.label], rec.phi, truth),
                                  "too_short": end - start < models[cid].model.n_states})
-            recognitions.append((rec, truth))
+            truths.append(truth)
+            scores.append((i, start, end, cid, [rec.log_likelihoods[c] for c in phmms]))
         for smoothing, grammar in grammars.items():
             try:
-                decoded, _ = grammar.decode([rec.log_likelihoods for rec, _ in recognitions])
+                decoded, _ = grammar.decode([rec.log_likelihoods for rec in recognitions])
             except InvalidInputError:  # strict grammar, unseen sequence: keep the isolated labels
                 unparsed[smoothing] += 1
                 decoded = [row["recognised"] for row in episode_rows]
-            for row, label, (rec, truth) in zip(episode_rows, decoded, recognitions):
+            for row, label, rec, truth in zip(episode_rows, decoded, recognitions, truths):
                 row[f"grammar_{smoothing:g}"] = int(label)
                 row[f"grammar_{smoothing:g}_phi_error_cm"] = effect_error_cm(models[label], rec.phis[label], truth)
         rows += episode_rows
+    if args.scores:
+        episode, start, end, true_class, log_likelihood = zip(*scores)
+        np.savez_compressed(args.scores, classes=np.array(list(phmms)), episode=np.array(episode),
+                            start=np.array(start), end=np.array(end), true_class=np.array(true_class),
+                            log_likelihood=np.array(log_likelihood))
     recognised = time.perf_counter()
 
     correct = [r for r in rows if r["recognised"] == r["class"]]

@@ -3,7 +3,9 @@
 Discovers primitives on one ``paper`` recording (from the object trajectories alone), trains one
 parametric HMM per discovered class on the arm markers with the effects the discovery measured, then
 cuts a held-out episode the way the discovery would and recognises each piece: which primitive, and
-where it started and ended.
+where it started and ended; then lets the action grammar learned from the training demonstrations
+pick the most probable sequence of classes for the whole episode (:meth:`ActionGrammar.decode`), which
+separates look-alike pieces such as the first and second few centimetres of one push.
 
     python examples/phmm_recognition.py --train data/paper-s0.h5 --test data/paper-s1.h5 [--record] [--episode 0]
 
@@ -19,6 +21,7 @@ import numpy as np
 
 from hoap_actions.primitives.datasets import load_demonstrations
 from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
+from hoap_actions.primitives.grammar import ActionGrammar
 from hoap_actions.primitives.parametric_hmm import ParametricHMM, recognize
 
 
@@ -50,12 +53,14 @@ def main() -> None:
         model = ParametricHMM(n_states=min(40, min(lengths)), covariance_type="diag", reg_covar=1e-5, random_state=0)
         models[cls.primitive_id] = model.fit(np.concatenate(movements), lengths, (effects - centre) @ basis)
         frames[cls.primitive_id] = (centre, basis)
+    grammar = ActionGrammar(smoothing=1e-3).fit([[pid for pid, *_ in seg] for seg in discovery.segmentations_])
     print(f"{len(models)} primitive classes discovered in {len(train)} demonstrations")
 
     episode = test[args.episode]
     labels = discovery.predict([episode.O])[0]                          # cut by the discovery, not by ground truth
     bounds = np.concatenate([[0], np.flatnonzero(np.diff(labels)) + 1, [episode.T]])
     print(f"held-out episode {args.episode} ({episode.ground_truth.action} {episode.ground_truth.direction}):")
+    expected_classes, results = [], []
     for start, end in zip(bounds[:-1], bounds[1:]):
         expected = int(labels[start])
         if expected == UNKNOWN:
@@ -68,6 +73,12 @@ def main() -> None:
         print(f"  frames {start:4d}-{end:4d}: discovery says {expected:3d} ({kind}), recognised {result.label:3d}; "
               f"from {initial.round(3)} (true {track[start].round(3)}) to {final.round(3)} "
               f"(true {track[end - 1].round(3)})")
+        expected_classes.append(expected)
+        results.append(result)
+    decoded, _ = grammar.decode([r.log_likelihoods for r in results])
+    print(f"  discovery's classes:       {expected_classes}")
+    print(f"  recognised one by one:     {[r.label for r in results]}")
+    print(f"  decoded with the grammar:  {decoded}")
 
 
 if __name__ == "__main__":
