@@ -127,6 +127,7 @@ def train_class(movements, effects, args) -> tuple[ClassModel, dict]:
 
 
 _WORKER: dict = {}
+UNEXPLAINED = -2  # label of a held-out segment shorter than every class's chain
 
 
 def _start_worker(phmms: dict, n_restarts: int) -> None:
@@ -135,10 +136,20 @@ def _start_worker(phmms: dict, n_restarts: int) -> None:
 
 
 def _recognise_segments(segments: list) -> list:
-    """:func:`recognize` each segment of one held-out episode (runs in a worker process)."""
+    """:func:`recognize` each segment of one held-out episode (runs in a worker process).
+
+    A segment shorter than every class's chain gives None: no model can explain it.
+    """
+    from hoap_actions.errors import InvalidInputError
     from hoap_actions.primitives.parametric_hmm import recognize
 
-    return [recognize(X, _WORKER["phmms"], n_restarts=_WORKER["n_restarts"]) for X in segments]
+    results = []
+    for X in segments:
+        try:
+            results.append(recognize(X, _WORKER["phmms"], n_restarts=_WORKER["n_restarts"]))
+        except InvalidInputError:
+            results.append(None)
+    return results
 
 
 def effect_error_cm(model: ClassModel, phi, truth) -> float:
@@ -166,7 +177,7 @@ def grammar_summary(rows: list[dict], key: str, unparsed: int) -> dict:
 
     hits = [r for r in rows if r[key] == r["class"]]
     manipulation = [r for r in rows if r["kind"] == MANIPULATION]
-    errors = np.array([r[f"{key}_phi_error_cm"] for r in hits])
+    errors = np.array([r[f"{key}_phi_error_cm"] for r in hits if r[f"{key}_phi_error_cm"] is not None])
     return {"class_accuracy": len(hits) / len(rows),
             "class_accuracy_manipulation": sum(r[key] == r["class"] for r in manipulation) / len(manipulation),
             "phi_error_cm": {"mean": float(errors.mean()), "median": float(np.median(errors)),
@@ -217,6 +228,7 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.errors import InvalidInputError
     from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
     from hoap_actions.primitives.grammar import ActionGrammar
+    from hoap_actions.primitives.parametric_hmm import Recognition
 
     train_seeds = [0, *range(2, len(args.train) + 1)]  # seed 1 is the held-out recording
     for path, seed in [*zip(args.train, train_seeds), (args.test, 1)]:
@@ -264,14 +276,20 @@ def main(argv: list[str] | None = None) -> dict:
     scores = []  # (episode, start, end, class, log-likelihood per class) for --scores
     for i, (episode, runs, recognitions) in enumerate(zip(test, pieces, results)):
         episode_rows, truths = [], []
+        # a segment no class can explain is a miss; to the grammar it is no evidence (equal scores)
+        recognitions = [rec if rec is not None else Recognition(label=UNEXPLAINED, phi=np.zeros(0),
+                                                                log_likelihoods=dict.fromkeys(phmms, 0.0))
+                        for rec in recognitions]
         for (cid, start, end), rec in zip(runs, recognitions):
             if discovery.primitive_kinds_[cid] == MANIPULATION:
                 truth = np.concatenate([episode.O[start, :3], episode.O[end - 1, :3]])
             else:
                 truth = np.concatenate([inputs[i][start, marker], inputs[i][end - 1, marker]])
+            explained = rec.label != UNEXPLAINED
             episode_rows.append({"class": cid, "kind": discovery.primitive_kinds_[cid], "recognised": int(rec.label),
                                  "frames": end - start,
-                                 "phi_error_cm": effect_error_cm(models[rec.label], rec.phi, truth),
+                                 "phi_error_cm": effect_error_cm(models[rec.label], rec.phi, truth) if explained
+                                 else None,
                                  "too_short": end - start < models[cid].model.n_states})
             truths.append(truth)
             scores.append((i, start, end, cid, [rec.log_likelihoods[c] for c in phmms]))
@@ -283,7 +301,8 @@ def main(argv: list[str] | None = None) -> dict:
                 decoded = [row["recognised"] for row in episode_rows]
             for row, label, rec, truth in zip(episode_rows, decoded, recognitions, truths):
                 row[f"grammar_{smoothing:g}"] = int(label)
-                row[f"grammar_{smoothing:g}_phi_error_cm"] = effect_error_cm(models[label], rec.phis[label], truth)
+                row[f"grammar_{smoothing:g}_phi_error_cm"] = (
+                    effect_error_cm(models[label], rec.phis[label], truth) if rec.phis else None)
         rows += episode_rows
     if args.scores:
         episode, start, end, true_class, log_likelihood = zip(*scores)
@@ -295,7 +314,7 @@ def main(argv: list[str] | None = None) -> dict:
     correct = [r for r in rows if r["recognised"] == r["class"]]
     errors = np.array([r["phi_error_cm"] for r in correct])
     accuracy = len(correct) / len(rows)
-    action_accuracy = float(np.mean([action_of[r["recognised"]] == action_of[r["class"]] for r in rows]))
+    action_accuracy = float(np.mean([action_of.get(r["recognised"]) == action_of[r["class"]] for r in rows]))
     manipulation = [r for r in rows if discovery.primitive_kinds_[r["class"]] == MANIPULATION]
     ends = [r for r in rows if discovery.primitive_kinds_[r["class"]] != MANIPULATION]
     per_class = []
