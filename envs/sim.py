@@ -393,6 +393,16 @@ class Sim:
         self._p.removeConstraint(constraint_id)
 
     # ----------------------------------------------------------------- stepping
+    def set_solver_iterations(self, iterations: int) -> None:
+        """Cap the constraint solver's iterations per step (PyBullet's default is 50).
+
+        Fewer iterations step faster and hold joints and contacts less stiffly; the environments keep
+        the default. ``benchmarks/physics_floor.py`` measures what the cap buys.
+        """
+        if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+            raise InvalidInputError(f"iterations must be an int >= 1, got {iterations!r}")
+        self._p.setPhysicsEngineParameter(numSolverIterations=int(iterations))
+
     def step(self, n: int = 1) -> None:
         for _ in range(n):
             self._p.stepSimulation()

@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import world
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import Sim
 
@@ -141,3 +142,25 @@ def test_hand_holds_a_peg_by_friction(standing, tmp_path, exact_cylinder):
     assert {c["link_b"] for c in sim.contacts("peg")} <= {thumb, palm}
     assert np.linalg.norm(peg_in_tcp() - before) <= 0.002
     assert not robot.has_fallen()
+
+
+def test_solver_iteration_cap_loosens_the_joints():
+    """One solver iteration cannot hold the standing posture as tightly as PyBullet's default 50."""
+    sag = {}
+    for iterations in (None, 1):
+        sim = Sim()
+        sim.add_ground_plane(z=world.FLOOR_Z)
+        robot = Robot(sim)
+        if iterations is not None:
+            sim.set_solver_iterations(iterations)
+        sim.step(120)
+        sag[iterations] = float(np.abs(robot.joint_positions() - robot.targets).max())
+        sim.close()
+    assert sag[1] > 2 * sag[None], sag
+
+
+@pytest.mark.parametrize("iterations", [0, -3, 2.5, True, "10"])
+def test_solver_iterations_must_be_a_positive_int(standing, iterations):
+    sim, _ = standing
+    with pytest.raises(InvalidInputError, match="iterations must be an int >= 1"):
+        sim.set_solver_iterations(iterations)
