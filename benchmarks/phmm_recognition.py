@@ -24,7 +24,12 @@ Protocol (section "Recognition with HMMs and PHMMs"):
 * each held-out ``H`` segment goes through :func:`recognize`: the class of highest likelihood at its
   maximum-likelihood phi.  Phi error: 3-D distance of the estimated initial and final locations to the
   true ones (the object's position in ``O``, or the hand marker's in ``H``, at the segment's first and
-  last frame), averaged over the two, for segments whose class was recognised.
+  last frame), averaged over the two, for segments whose class was recognised;
+* the same scores decoded per held-out demonstration with the action grammar learned from the
+  training demonstrations (:meth:`ActionGrammar.decode`: the class sequence maximising the grammar's
+  log-probability plus the segments' log-likelihoods), at the smoothings in ``GRAMMAR_SMOOTHINGS``.
+  This is the paper's "given the action grammar ... we are able to recognize complex actions": the
+  successive pieces of one push look alike one at a time, but only one order of them is grammatical.
 
 Also reported, from the hidden labels (evaluation only): accuracy at the level of actions, counting a
 confusion between two classes of the same action (e.g. the first and second 3 cm of one push) as
@@ -53,10 +58,12 @@ from _results import numeric_environment, write_json  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results"
 GOAL_ACCURACY = 0.95
 GOAL_PHI_CM = 2.0
-# Lidstone pseudo-counts of the grammar used to decode a demonstration's segments; the headline is 1e-3
-# (chosen before measuring: an unseen transition costs about 7 nats more than a seen one), 0 is the
-# strict grammar of seen transitions, 1 Laplace's.
-GRAMMAR_SMOOTHINGS = (1e-3, 0.0, 1.0)
+# Lidstone pseudo-counts of the grammar that decodes a demonstration's segments.  The headline is 0, the
+# strict grammar of the transitions seen in training (a demonstration it cannot parse keeps its isolated
+# labels): on a validation split (train seeds 0 and 2, held-out seed 3) it scored 83.3 % against 81.0 %
+# for 1e-3 and 80.8 % for 1 and for no grammar.  A small smoothing changes nothing: the look-alike pieces'
+# log-likelihoods differ by more than the ~7 nats an unseen transition costs.
+GRAMMAR_SMOOTHINGS = (0.0, 1e-3, 1.0)
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
