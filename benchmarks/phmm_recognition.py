@@ -375,7 +375,8 @@ def main(argv: list[str] | None = None) -> dict:
           f"(goal <= {GOAL_PHI_CM} cm)")
     for smoothing, summary in result["with_grammar"].items():
         print(f"decoded with the action grammar (smoothing {smoothing}): class accuracy "
-              f"{100 * summary['class_accuracy']:.1f} % (manipulation {100 * summary['class_accuracy_manipulation']:.1f}"
+              f"{100 * summary['class_accuracy']:.1f} % (manipulation "
+              f"{100 * summary['class_accuracy_manipulation']:.1f}"
               f" %), phi error median {summary['phi_error_cm']['median']:.2f} cm, mean "
               f"{summary['phi_error_cm']['mean']:.2f} cm; {summary['demonstrations_without_grammatical_decoding']} "
               "demonstrations kept their isolated labels")

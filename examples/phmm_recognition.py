@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.datasets import load_demonstrations
 from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
 from hoap_actions.primitives.grammar import ActionGrammar
@@ -53,7 +54,8 @@ def main() -> None:
         model = ParametricHMM(n_states=min(40, min(lengths)), covariance_type="diag", reg_covar=1e-5, random_state=0)
         models[cls.primitive_id] = model.fit(np.concatenate(movements), lengths, (effects - centre) @ basis)
         frames[cls.primitive_id] = (centre, basis)
-    grammar = ActionGrammar(smoothing=1e-3).fit([[pid for pid, *_ in seg] for seg in discovery.segmentations_])
+    # the strict grammar: only the class transitions seen in the training demonstrations
+    grammar = ActionGrammar().fit([[pid for pid, *_ in seg] for seg in discovery.segmentations_])
     print(f"{len(models)} primitive classes discovered in {len(train)} demonstrations")
 
     episode = test[args.episode]
@@ -75,10 +77,12 @@ def main() -> None:
               f"(true {track[end - 1].round(3)})")
         expected_classes.append(expected)
         results.append(result)
-    decoded, _ = grammar.decode([r.log_likelihoods for r in results])
     print(f"  discovery's classes:       {expected_classes}")
     print(f"  recognised one by one:     {[r.label for r in results]}")
-    print(f"  decoded with the grammar:  {decoded}")
+    try:
+        print(f"  decoded with the grammar:  {grammar.decode([r.log_likelihoods for r in results])[0]}")
+    except InvalidInputError:  # no sequence of this length was seen in training
+        print("  decoded with the grammar:  none of the training sequences' transitions fits this episode")
 
 
 if __name__ == "__main__":

@@ -181,7 +181,8 @@ def test_decode_lets_the_grammar_separate_look_alike_pieces():
     pieces = ["push-1", "push-2", "push-3"]
     # every piece of the push looks most like the third piece; the move is far less likely
     look_alike = {"push-1": -10.0, "push-2": -10.0, "push-3": -9.5, "move": -40.0, "approach": -80.0, "remove": -80.0}
-    scores = [{"approach": 0.0, "remove": -50.0}, look_alike, look_alike, look_alike, {"remove": 0.0, "approach": -50.0}]
+    first, last = {"approach": 0.0, "remove": -50.0}, {"remove": 0.0, "approach": -50.0}
+    scores = [first, look_alike, look_alike, look_alike, last]
     isolated = [max(s, key=s.get) for s in scores]
     assert isolated[1:4] == ["push-3"] * 3
     decoded, _ = grammar.decode(scores)
