@@ -135,7 +135,7 @@ class Robot:
         self.set_targets(q)
 
     def set_targets(self, q: np.ndarray) -> None:
-        """Position targets for all 28 joints, driven with the HOAP-3 peak torques and 5 rad/s.
+        """Position targets for all 28 joints, driven with the HOAP-3 peak torques and a 5 rad/s motor cap.
 
         Raises :class:`InvalidInputError` for a wrong shape or NaN/inf. Targets beyond a joint's
         range are clipped to it, as a servo's own limits would (MuJoCo's ``ctrlrange`` behaves the

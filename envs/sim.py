@@ -289,7 +289,10 @@ class Sim:
     ) -> None:
         """Position control with realistic torque limits (N m) and joint speed limits (rad/s).
 
-        URDF velocity limits are ignored by PyBullet unless passed here as ``maxVelocity``.
+        URDF velocity limits are ignored by PyBullet unless passed here as ``maxVelocity``. PyBullet
+        applies it as a cap on the motor's corrective velocity, not a hard bound on the joint: after a
+        1 rad target step the right shoulder (limit 5 rad/s) peaked at 11 rad/s. The controllers never
+        ask for such steps (joint_delta moves targets at most 1.5 rad/s; the IK plans within 5 rad/s).
         """
         body = self.body_id(name)
         for j, q, f, v in zip(indices, positions, forces, max_velocities):
