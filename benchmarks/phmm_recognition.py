@@ -176,20 +176,20 @@ def held_out_segments(labels) -> list[tuple[int, int, int]]:
     return [(int(labels[a]), int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def grammar_summary(rows: list[dict], key: str, unparsed: int) -> dict:
-    """Accuracy and phi error of the grammar-decoded labels stored under ``key`` in each row."""
+def label_summary(rows: list[dict], label_key: str, error_key: str) -> dict:
+    """Class accuracy (all, manipulation) of the labels under ``label_key`` in each row, and the phi
+    error under ``error_key`` of the segments they got right."""
     import numpy as np
 
     from hoap_actions.primitives.discovery import MANIPULATION
 
-    hits = [r for r in rows if r[key] == r["class"]]
+    hits = [r for r in rows if r[label_key] == r["class"]]
     manipulation = [r for r in rows if r["kind"] == MANIPULATION]
-    errors = np.array([r[f"{key}_phi_error_cm"] for r in hits if r[f"{key}_phi_error_cm"] is not None])
+    errors = np.array([r[error_key] for r in hits if r[error_key] is not None])
     return {"class_accuracy": len(hits) / len(rows),
-            "class_accuracy_manipulation": sum(r[key] == r["class"] for r in manipulation) / len(manipulation),
+            "class_accuracy_manipulation": sum(r[label_key] == r["class"] for r in manipulation) / len(manipulation),
             "phi_error_cm": {"mean": float(errors.mean()), "median": float(np.median(errors)),
-                             "p90": float(np.percentile(errors, 90))},
-            "demonstrations_without_grammatical_decoding": unparsed}
+                             "p90": float(np.percentile(errors, 90))}}
 
 
 def plot(path: Path, per_class: list[dict], accuracy: float, phi_median: float) -> None:
@@ -231,8 +231,8 @@ def main(argv: list[str] | None = None) -> dict:
     import numpy as np
     from tqdm import tqdm
 
-    from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.errors import InvalidInputError
+    from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
     from hoap_actions.primitives.grammar import ActionGrammar
     from hoap_actions.primitives.parametric_hmm import Recognition
@@ -318,12 +318,10 @@ def main(argv: list[str] | None = None) -> dict:
                             log_likelihood=np.array(log_likelihood))
     recognised = time.perf_counter()
 
-    correct = [r for r in rows if r["recognised"] == r["class"]]
-    errors = np.array([r["phi_error_cm"] for r in correct])
-    accuracy = len(correct) / len(rows)
+    isolated = label_summary(rows, "recognised", "phi_error_cm")
+    accuracy, phi_error = isolated["class_accuracy"], isolated["phi_error_cm"]
     action_accuracy = float(np.mean([action_of.get(r["recognised"]) == action_of[r["class"]] for r in rows]))
-    manipulation = [r for r in rows if discovery.primitive_kinds_[r["class"]] == MANIPULATION]
-    ends = [r for r in rows if discovery.primitive_kinds_[r["class"]] != MANIPULATION]
+    ends = [r for r in rows if r["kind"] != MANIPULATION]
     per_class = []
     for cls in discovery.classes_:
         cid = cls.primitive_id
@@ -347,20 +345,19 @@ def main(argv: list[str] | None = None) -> dict:
         "n_classes": len(models),
         "n_test_segments": len(rows),
         "unknown_held_out": unknown,
-        "class_accuracy": accuracy,
-        "class_accuracy_manipulation": sum(r["recognised"] == r["class"] for r in manipulation) / len(manipulation),
+        **isolated,
         "class_accuracy_approach_remove": sum(r["recognised"] == r["class"] for r in ends) / len(ends),
         "action_accuracy": action_accuracy,
         "held_out_segments_shorter_than_their_class_chain": sum(r["too_short"] for r in rows),
-        "phi_error_cm": {"mean": float(errors.mean()), "median": float(np.median(errors)),
-                         "p90": float(np.percentile(errors, 90))},
         "goal": {"class_accuracy_at_least": GOAL_ACCURACY, "phi_error_cm_at_most": GOAL_PHI_CM},
         "per_class": per_class,
         "timing_s": {"discovery_and_training": round(fitted - started, 1),
                      "recognition": round(recognised - fitted, 1)},
     }
-    result["with_grammar"] = {f"{smoothing:g}": grammar_summary(rows, f"grammar_{smoothing:g}", unparsed[smoothing])
-                              for smoothing in GRAMMAR_SMOOTHINGS}
+    result["with_grammar"] = {
+        f"{smoothing:g}": {**label_summary(rows, f"grammar_{smoothing:g}", f"grammar_{smoothing:g}_phi_error_cm"),
+                           "demonstrations_without_grammatical_decoding": unparsed[smoothing]}
+        for smoothing in GRAMMAR_SMOOTHINGS}
     headline = result["with_grammar"][f"{GRAMMAR_SMOOTHINGS[0]:g}"]
     result["goal_met"] = {"accuracy": accuracy >= GOAL_ACCURACY,
                           "accuracy_with_grammar": headline["class_accuracy"] >= GOAL_ACCURACY,
@@ -371,7 +368,7 @@ def main(argv: list[str] | None = None) -> dict:
           f"{100 * result['class_accuracy_approach_remove']:.1f} %, manipulation "
           f"{100 * result['class_accuracy_manipulation']:.1f} %; same action {100 * action_accuracy:.1f} %; "
           f"{result['held_out_segments_shorter_than_their_class_chain']} held-out segments shorter than their chain")
-    print(f"phi error (recognised segments): mean {errors.mean():.2f}, median {np.median(errors):.2f} cm "
+    print(f"phi error (recognised segments): mean {phi_error['mean']:.2f}, median {phi_error['median']:.2f} cm "
           f"(goal <= {GOAL_PHI_CM} cm)")
     for smoothing, summary in result["with_grammar"].items():
         print(f"decoded with the action grammar (smoothing {smoothing}): class accuracy "
@@ -388,7 +385,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{c['class']:5d} {c['action']:>13} {c['n_train']:5d} {c['n_test']:4d} {c['n_states']:3d} "
               f"{c['phi_dim']:2d} {100 * c['accuracy']:6.1f} {mean} {median}  {c['confused_with']}")
     png = args.output.with_suffix(".png")
-    plot(png, [c for c in per_class if c["n_test"]], accuracy, float(np.median(errors)))
+    plot(png, [c for c in per_class if c["n_test"]], accuracy, phi_error["median"])
     result["figure"] = png.name
     result["environment"] = numeric_environment(args.threads)
     write_json(args.output, result)

@@ -37,4 +37,3 @@ def policy_class(name: str) -> type:
         return POLICIES[name]
     except KeyError:
         raise InvalidInputError(f"unknown policy {name!r}; accepted: {sorted(POLICIES)}") from None
-
