@@ -126,7 +126,8 @@ class ActionGrammar:
         targets = [*self.symbols_, END]
         return {t: float(p) for t, p in zip(targets, row[1:]) if p > 0}
 
-    def decode(self, segment_scores: Sequence[Mapping[Symbol, float]]) -> tuple[list[Symbol], float]:
+    def decode(self, segment_scores: Sequence[Mapping[Symbol, float]],
+               unexplained_penalty: float | None = None) -> tuple[list[Symbol], float]:
         """Most probable class sequence for consecutive segments, given each segment's class log-likelihoods.
 
         Maximises ``log P(sequence | grammar) + sum_i segment_scores[i][class_i]`` by Viterbi over the
@@ -134,6 +135,12 @@ class ActionGrammar:
         equally well (e.g. the first and second piece of one push) gets the one the grammar allows
         after its neighbours.  Classes missing from a mapping score ``-inf``; classes the grammar does
         not know are ignored.  Returns ``(classes, total log-score)``.
+
+        ``unexplained_penalty`` (nats, >= 0) keeps a segment that some classes cannot explain at all
+        (``-inf``: e.g. a held-out piece shorter than a left-right chain) from ruling out every path
+        through those classes: each such class scores the segment's best finite score minus the
+        penalty instead, and a segment no class explains leaves the choice to the grammar.  Without
+        it, one unexplainable segment forces its neighbours onto whatever other path stays finite.
         """
         self._check_fitted()
         if isinstance(segment_scores, Mapping) or not len(segment_scores):
@@ -150,6 +157,15 @@ class ActionGrammar:
                     raise InvalidInputError(f"segment_scores[{i}][{symbol!r}] is {value}; log-likelihoods must be "
                                             "finite or -inf")
                 log_frame[i, k] = value
+        if unexplained_penalty is not None:
+            penalty = float(unexplained_penalty)
+            if not penalty >= 0.0 or penalty == np.inf:
+                raise InvalidInputError(f"unexplained_penalty must be a finite number of nats >= 0 or None; got "
+                                        f"{unexplained_penalty!r}")
+            finite = np.isfinite(log_frame)
+            best_finite = np.max(np.where(finite, log_frame, -np.inf), axis=1, initial=-np.inf)
+            floor = np.where(np.isfinite(best_finite), best_finite, 0.0) - penalty
+            log_frame = np.where(finite, log_frame, floor[:, None])
         with np.errstate(divide="ignore"):
             log_t = np.log(self.transmat_)
         best, path = viterbi(log_t[0, 1 : n + 1], log_t[1 : n + 1, 1 : n + 1], log_frame, [len(log_frame)],

@@ -205,3 +205,34 @@ def test_decode_bad_input(grammar):
                                                                                                         "remove"]
     with pytest.raises(NotFittedError):
         ActionGrammar().decode([{"a": 0.0}])
+
+
+def test_decode_unexplained_penalty_keeps_the_grammatical_path_through_an_unexplainable_segment():
+    grammar = ActionGrammar().fit(PIECES + [["approach", "move", "remove"]])
+    first, last = {"approach": 0.0}, {"remove": 0.0}
+    # the second push piece is too short for its own model (-inf); the move explains it, poorly
+    scores = [first, {"push-1": -5.0, "move": -20.0}, {"push-2": -np.inf, "move": -30.0}, {"push-3": -5.0, "move": -40.0},
+              last]
+    with pytest.raises(InvalidInputError, match="smoothing > 0"):
+        grammar.decode(scores)  # no grammatical path has only finite scores: one move covers 3 segments nowhere
+    decoded, total = grammar.decode(scores, unexplained_penalty=10.0)
+    assert decoded == ["approach", "push-1", "push-2", "push-3", "remove"]
+    # push-2 scored the segment's best finite score (-30) minus the penalty
+    assert total == pytest.approx(grammar.log_probability(decoded) - 5.0 - 40.0 - 5.0)
+    # the penalty enters the score of the path that uses it
+    assert grammar.decode(scores, unexplained_penalty=1e4)[1] == pytest.approx(total - (1e4 - 10.0))
+
+
+def test_decode_unexplained_penalty_prefers_explained_paths_and_lets_the_grammar_label_blank_segments():
+    grammar = ActionGrammar().fit(PIECES)
+    # the middle segment is explained by no class at all: the grammar alone labels it
+    blank = {"push-1": -np.inf, "push-2": -np.inf, "push-3": -np.inf}
+    scores = [{"approach": 0.0}, {"push-1": 0.0}, blank, {"push-3": 0.0}, {"remove": 0.0}]
+    assert grammar.decode(scores, unexplained_penalty=50.0)[0] == ["approach", "push-1", "push-2", "push-3", "remove"]
+    # scores without -inf are left alone: same path and score as without a penalty
+    rng = np.random.default_rng(1)
+    finite = [dict(zip(grammar.symbols_, rng.normal(0.0, 3.0, len(grammar.symbols_)))) for _ in range(5)]
+    assert grammar.decode(finite, unexplained_penalty=0.0) == grammar.decode(finite)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(InvalidInputError, match="unexplained_penalty"):
+            grammar.decode(finite, unexplained_penalty=bad)
