@@ -15,7 +15,7 @@ key                      shape                meaning
 format_version           () int               1
 kind                     () str               "ParametricHMM"
 n_states, n_iter         () int               hyper-parameters as given to ``__init__``
-topology                 () str               "left-right" or "ergodic"
+topology                 () str               "left-right", "left-right-skip" or "ergodic"
 covariance_type          () str               "full" or "diag"
 tol, reg_covar           () float             hyper-parameters
 random_state             (0,) or (1,) int     the seed; empty when it was not an int (None or a Generator)
@@ -65,7 +65,10 @@ __all__ = ["EMReport", "NStatesSelection", "ParametricHMM", "Recognition", "reco
 logger = logging.getLogger(__name__)
 
 FORMAT_VERSION = 1
-_TOPOLOGIES = ("left-right", "ergodic")
+_TOPOLOGIES = ("left-right", "left-right-skip", "ergodic")
+# Share of a left-right-skip chain's initial moves that skip a state: EM only rescales transitions it
+# starts with, so skips must start non-zero; the training data then decide how often they are taken.
+_SKIP_SHARE = 1.0 / 3.0
 _COVARIANCE_TYPES = ("full", "diag")
 # Relative ridge on the effect block of each state's regression: only matters when a state's
 # weighted effects are degenerate (possible in ergodic models), and then picks the small-norm W.
@@ -126,7 +129,10 @@ class ParametricHMM:
     topology:
         ``"left-right"``: a Bakis chain (stay or move one state right) that starts in the first state
         and must end in the last, so every demonstration traverses the whole movement (needed by
-        :meth:`synthesize`); ``"ergodic"``: any transition, learned start distribution.
+        :meth:`synthesize`); ``"left-right-skip"``: the same chain that may also jump over one state,
+        so a faster performance with about half as many frames as states still traverses it (a
+        held-out piece shorter than the shortest training piece can be explained); ``"ergodic"``: any
+        transition, learned start distribution.
     covariance_type:
         ``"full"`` or ``"diag"`` state covariances.
     n_iter, tol:
@@ -175,7 +181,18 @@ class ParametricHMM:
 
     @property
     def _left_right(self) -> bool:
-        return self.topology == "left-right"
+        """A chain from the first state to the last (with or without skips)."""
+        return self.topology in ("left-right", "left-right-skip")
+
+    @property
+    def min_frames(self) -> int:
+        """Fewest frames a sequence needs to be possible under this model: a chain must reach its last state."""
+        k = int(self.n_states)
+        if self.topology == "left-right":
+            return k
+        if self.topology == "left-right-skip":
+            return k // 2 + 1  # ceil((k - 1) / 2) moves of at most two states, plus the first frame
+        return 1
 
     def _check_phi(self, phi) -> np.ndarray:
         p = self.n_params_
@@ -197,9 +214,10 @@ class ParametricHMM:
         if X.shape[1] != self.n_features_in_:
             raise InvalidInputError(f"X has {X.shape[1]} features per frame; this model was trained on "
                                     f"{self.n_features_in_}")
-        if self._left_right and X.shape[0] < self.n_states:
-            raise InvalidInputError(f"the sequence has {X.shape[0]} frames, fewer than the {self.n_states} states "
-                                    "of this left-right chain, which must visit every state")
+        if X.shape[0] < self.min_frames:
+            raise InvalidInputError(f"the sequence has {X.shape[0]} frames; this {self.n_states}-state "
+                                    f"{self.topology} chain must reach its last state, which takes >= "
+                                    f"{self.min_frames} frames")
         return X
 
     # ---------------------------------------------------------------------------- model maths
@@ -279,7 +297,9 @@ class ParametricHMM:
 
         The training effects must affinely span R^p (at least p + 1 of them, not all on one
         hyperplane) or W is not identifiable.  Left-right models start from each sequence cut into
-        K equal parts; ergodic models from the same cut with smoothed transitions.
+        K equal parts (so training sequences need >= K frames); left-right-skip models from the same
+        cut with a third of its moves turned into skips; ergodic models from the cut with smoothed
+        transitions.
         """
         self._check_hyper_parameters()
         X, lengths = validate_sequences(X, lengths)
@@ -300,6 +320,10 @@ class ParametricHMM:
         gamma, xi = _equal_parts(lengths, k)
         if self._left_right:
             self.startprob_ = np.eye(k)[0]
+            if self.topology == "left-right-skip" and k > 2:
+                moves = np.diagonal(xi, offset=1).copy()
+                xi[np.arange(k - 1), np.arange(1, k)] = (1.0 - _SKIP_SHARE) * moves
+                xi[np.arange(k - 2), np.arange(2, k)] = _SKIP_SHARE * moves[:-1]
         else:
             # Blur the cut so every state sees data and every transition stays possible.
             gamma = np.where(gamma.any(axis=2, keepdims=True), 0.9 * gamma + 0.1 / k, 0.0)
@@ -414,9 +438,10 @@ class ParametricHMM:
     def synthesize(self, phi, n_frames: int | None = None) -> np.ndarray:
         """Prototype movement ``(T, D)`` for effect ``phi``: the state means at phi, linearly interpolated.
 
-        Mean ``j + 1`` is reached ``1 / (1 - a_jj)`` frames (state j's expected duration) after mean
-        ``j``, so ``T = round(sum_{j<K-1} 1/(1 - a_jj)) + 1``; with ``n_frames`` the same path is
-        resampled to that many frames.  Left-right models only.
+        Mean ``j + 1`` is reached ``v_j / (1 - a_jj)`` frames (the expected time in state j, whose
+        visit probability ``v_j`` is 1 without skips) after mean ``j``, so
+        ``T = round(sum_{j<K-1} v_j / (1 - a_jj)) + 1``; with ``n_frames`` the same path is resampled
+        to that many frames.  Left-right models (with or without skips) only.
         """
         self._check_fitted()
         if not self._left_right:
@@ -426,13 +451,24 @@ class ParametricHMM:
             raise InvalidInputError(f"n_frames must be None or an int >= 1; got {n_frames!r}")
         means = self.mean_bar_ + self.W_ @ phi                                   # (K, D)
         stay = np.clip(np.diagonal(self.transmat_)[:-1], 0.0, 1.0 - 1e-12)
-        anchors = np.concatenate([[0.0], np.cumsum(1.0 / (1.0 - stay))])
+        anchors = np.concatenate([[0.0], np.cumsum(self._visit_probabilities()[:-1] / (1.0 - stay))])
         if n_frames is None:
             n_frames = int(round(anchors[-1])) + 1
         times = np.linspace(0.0, anchors[-1], int(n_frames))
         if means.shape[0] == 1:
             return np.repeat(means, int(n_frames), axis=0)
         return np.stack([np.interp(times, anchors, means[:, i]) for i in range(means.shape[1])], axis=1)
+
+    def _visit_probabilities(self) -> np.ndarray:
+        """Probability that a left-right chain passes through each state (1 for all without skips)."""
+        a = self.transmat_
+        k = a.shape[0]
+        leave = np.clip(1.0 - np.diagonal(a), 1e-12, None)
+        visit = np.zeros(k)
+        visit[0] = 1.0
+        for j in range(1, k):
+            visit[j] = sum(visit[i] * a[i, j] / leave[i] for i in range(max(j - 2, 0), j))
+        return visit
 
     # ------------------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
@@ -580,7 +616,8 @@ def _equal_parts(lengths: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 def recognize(X, models: Mapping[str, ParametricHMM], n_restarts: int = 5) -> Recognition:
     """Classify one movement ``X`` (T, D): estimate phi under each class's model, pick the most likely class.
 
-    A left-right model with more states than ``X`` has frames cannot explain it and scores ``-inf``.
+    A chain that cannot reach its last state in ``X``'s frames (:attr:`ParametricHMM.min_frames`) cannot
+    explain it and scores ``-inf``.
     """
     if not models:
         raise InvalidInputError("models must map at least one class label to a fitted ParametricHMM")
@@ -589,7 +626,7 @@ def recognize(X, models: Mapping[str, ParametricHMM], n_restarts: int = 5) -> Re
     phis: dict[str, np.ndarray] = {}
     for label, model in models.items():
         model._check_fitted()
-        if model._left_right and X.shape[0] < model.n_states:
+        if X.shape[0] < model.min_frames:
             scores[label], phis[label] = -np.inf, np.full(model.n_params_, np.nan)
             continue
         phis[label], scores[label] = model._estimate(X, n_restarts=n_restarts)

@@ -107,7 +107,7 @@ def test_synthesize_reproduces_generating_means(model, data):
 
 
 @pytest.mark.parametrize("covariance_type", ["full", "diag"])
-@pytest.mark.parametrize("topology", ["left-right", "ergodic"])
+@pytest.mark.parametrize("topology", ["left-right", "left-right-skip", "ergodic"])
 def test_log_likelihood_rises_monotonically(data, covariance_type, topology):
     X, lengths, phis, _ = data
     m = ParametricHMM(n_states=K, topology=topology, covariance_type=covariance_type, n_iter=25, tol=1e-9)
@@ -330,7 +330,7 @@ def test_sequences_shorter_than_the_chain(model, data):
     X, lengths, phis, _ = data
     with pytest.raises(InvalidInputError, match="shorter than the 30-state"):
         ParametricHMM(n_states=30).fit(X, lengths, phis)
-    with pytest.raises(InvalidInputError, match="fewer than the 4 states"):
+    with pytest.raises(InvalidInputError, match="takes >= 4 frames"):
         model.score(X[:3], phis[0])
     # recognize treats such a model as unable to explain the sequence.
     with pytest.raises(InvalidInputError, match="no model"):
@@ -351,3 +351,95 @@ def test_synthesize_needs_left_right(data):
     m = ParametricHMM(n_states=K, topology="ergodic", n_iter=3).fit(X, lengths, phis)
     with pytest.raises(InvalidInputError, match="left-right"):
         m.synthesize(phis[0])
+
+
+# ----------------------------------------------------------------------------------- left-right-skip
+@pytest.fixture(scope="module")
+def skip_model(data):
+    X, lengths, phis, _ = data
+    return ParametricHMM(n_states=K, topology="left-right-skip", n_iter=20, random_state=0).fit(X, lengths, phis)
+
+
+def test_skip_chain_moves_at_most_two_states_right(skip_model):
+    a = skip_model.transmat_
+    np.testing.assert_allclose(a.sum(axis=1), 1.0)
+    i, j = np.indices(a.shape)
+    assert np.all(a[(j < i) | (j > i + 2)] == 0.0)
+    assert np.all(a[j == i + 2] > 0.0)  # skips started non-zero and EM keeps them possible
+    np.testing.assert_array_equal(skip_model.startprob_, np.eye(K)[0])
+    assert skip_model.min_frames == K // 2 + 1 == 3
+    assert ParametricHMM(n_states=K).min_frames == K and ParametricHMM(n_states=K, topology="ergodic").min_frames == 1
+
+
+def test_skip_chain_score_is_the_sum_over_every_path_from_first_to_last_state(skip_model, data):
+    from itertools import product
+
+    from scipy.special import logsumexp
+    from scipy.stats import multivariate_normal
+
+    X, lengths, phis, _ = data
+    phi = phis[3]
+    means = skip_model.mean_bar_ + skip_model.W_ @ phi
+    a = skip_model.transmat_
+    for x in (X[:3], X[:5]):  # 3 frames: only paths with a skip reach the last state
+        logb = np.array([[multivariate_normal(means[j], skip_model.covars_[j]).logpdf(f) for j in range(K)]
+                         for f in x])
+        with np.errstate(divide="ignore"):
+            log_a = np.log(a)
+        paths = [p for p in product(range(K), repeat=len(x)) if p[0] == 0 and p[-1] == K - 1]
+        log_paths = [sum(log_a[i, j] for i, j in zip(p[:-1], p[1:])) + logb[np.arange(len(x)), p].sum()
+                     for p in paths]
+        assert skip_model.score(x, phi) == pytest.approx(logsumexp(log_paths), rel=1e-9)
+    with pytest.raises(InvalidInputError, match="takes >= 3 frames"):
+        skip_model.score(X[:2], phi)
+
+
+def test_skip_chains_recognise_performances_shorter_than_their_chain():
+    models, truth = {}, {}
+    for label, class_seed in (("approach", 1), ("push", 2), ("retract", 3)):
+        X, lengths, phis, _ = dataset(10 + class_seed, class_seed=class_seed, n=12)
+        models[label] = ParametricHMM(n_states=K, topology="left-right-skip", n_iter=20,
+                                      random_state=0).fit(X, lengths, phis)
+        truth[label] = make_class(class_seed)
+    rng = np.random.default_rng(7)
+    for label, (mean_bar, w) in truth.items():
+        # three frames for four states: the second state is skipped
+        fast = generate(rng, mean_bar, w, rng.uniform(-0.8, 0.8, size=P), durations=np.array([1, 0, 1, 1]))
+        assert recognize(fast, models).label == label
+        with pytest.raises(InvalidInputError, match="no model"):
+            recognize(fast, {label: ParametricHMM(n_states=K, n_iter=5).fit(*dataset(3)[:3])})
+
+
+def test_skip_chain_synthesis_times_states_by_their_visit_probability(skip_model):
+    import copy
+
+    # a chain that skips often (trained on data without skips, EM makes skips rare)
+    model = copy.deepcopy(skip_model)
+    model.transmat_ = np.array([[0.6, 0.1, 0.3, 0.0], [0.0, 0.5, 0.2, 0.3], [0.0, 0.0, 0.7, 0.3], [0.0, 0.0, 0.0, 1.0]])
+    a = model.transmat_
+    # independent check of the visit probabilities: simulate the chain
+    rng = np.random.default_rng(0)
+    visits = np.zeros(K)
+    for _ in range(20000):
+        state, seen = 0, {0}
+        while state != K - 1:
+            state = int(rng.choice(K, p=a[state]))
+            seen.add(state)
+        visits[list(seen)] += 1
+    visit = visits / 20000
+    np.testing.assert_allclose(visit, model._visit_probabilities(), atol=0.01)
+    phi = np.array([0.2, -0.4])
+    path = model.synthesize(phi)
+    expected_frames = np.sum(visit[:-1] / (1.0 - np.diagonal(a)[:-1])) + 1
+    assert abs(len(path) - expected_frames) <= 1.0
+    means = model.mean_bar_ + model.W_ @ phi
+    np.testing.assert_allclose(path[0], means[0])
+    np.testing.assert_allclose(path[-1], means[-1])
+
+
+def test_skip_chain_save_load_round_trip(skip_model, data, tmp_path):
+    X, _, phis, _ = data
+    skip_model.save(tmp_path / "skip.npz")
+    loaded = ParametricHMM.load(tmp_path / "skip.npz")
+    assert loaded.topology == "left-right-skip"
+    assert loaded.score(X[:3], phis[0]) == skip_model.score(X[:3], phis[0])
