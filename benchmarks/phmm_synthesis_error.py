@@ -22,7 +22,9 @@ Protocol (section "Precision of Synthesized Actions from PHMMs"):
 ``--diagnose`` adds what limits the synthesis: a sweep of states / covariance type / reg_covar;
 the best a linear PHMM can do (trained on the 5x7 test movements themselves); per-location plain
 HMMs (how much 40 interpolated state means lose); effect features (u, v, uv) and quadratic, the
-paper's "nonlinear model" option as a linear PHMM on features of phi; and the elbow's peak height,
+paper's "nonlinear model" option as a linear PHMM on features of phi (on the 3x3 grid also the
+biquadratic, whose 9 coefficients per state interpolate the 9 training locations exactly: the
+tensor-product quadratic interpolant, the most a 3x3 grid can pin down); and the elbow's peak height,
 which shows where the demonstrator changes arm strategy across the table.
 
     python benchmarks/phmm_synthesis_error.py --data /work/data/approach-grid.h5 [--record] [--diagnose]
@@ -53,6 +55,7 @@ FEATURES = {
     "linear": "phi = (u, v)",
     "bilinear": "phi = (u, v, u*v)",
     "quadratic": "phi = (u, v, u*v, u^2, v^2)",
+    "biquadratic": "phi = (u, v, uv, u^2, v^2, u^2 v, u v^2, u^2 v^2)",
 }
 
 
@@ -92,7 +95,8 @@ def features(phi, kind: str):
 
     phi = np.atleast_2d(phi)
     u, v = phi[:, 0], phi[:, 1]
-    extra = {"linear": [], "bilinear": [u * v], "quadratic": [u * v, u * u, v * v]}[kind]
+    extra = {"linear": [], "bilinear": [u * v], "quadratic": [u * v, u * u, v * v],
+             "biquadratic": [u * v, u * u, v * v, u * u * v, u * v * v, u * u * v * v]}[kind]
     return np.column_stack([u, v, *extra])
 
 
@@ -204,7 +208,8 @@ def diagnose(data: dict, test: dict, references, human, args) -> tuple[dict, lis
                     print(f"  sweep {grid} K={n_states:2d} {covariance_type:4s} reg={reg_covar:.0e}: "
                           f"mean {row['mean_cm']:.2f} max {row['max_cm']:.2f} cm")
     panels = []
-    for grid, kind in (("2x2", "bilinear"), ("3x3", "quadratic"), (TEST_GRID, "linear"), (TEST_GRID, "quadratic")):
+    for grid, kind in (("2x2", "bilinear"), ("3x3", "quadratic"), ("3x3", "biquadratic"), (TEST_GRID, "linear"),
+                       (TEST_GRID, "quadratic")):
         model = train(data[grid], args.states, args.covariance_type, args.reg_covar, kind)
         errors = synthesis_map(model, test, references, kind)
         label = f"trained on {grid}, {FEATURES[kind]}" + (" (in-sample)" if grid == TEST_GRID else "")
