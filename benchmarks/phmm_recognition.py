@@ -101,7 +101,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="append marker displacements over 0.1 s (default: on)")
     parser.add_argument("--threads", type=int, default=1, help="BLAS threads per process")
     parser.add_argument("--jobs", type=int, default=os.cpu_count(), help="worker processes for recognition")
-    parser.add_argument("--scores", type=Path, help="also save every segment's per-class log-likelihoods (.npz)")
+    parser.add_argument("--scores", type=Path, help="also save every segment's per-class log-likelihoods and "
+                        "estimated effects (initial, final xyz), and its true effect (.npz)")
     parser.add_argument("--output", type=Path, default=RESULTS / "phmm_recognition.json")
     return parser.parse_args(argv)
 
@@ -301,7 +302,7 @@ def main(argv: list[str] | None = None) -> dict:
     with ProcessPoolExecutor(args.jobs, initializer=_start_worker, initargs=(phmms, args.n_restarts)) as pool:
         results = list(tqdm(pool.map(_recognise_segments, jobs), total=len(jobs),
                             desc="recognising held-out demonstrations", unit="demo"))
-    scores = []  # (episode, start, end, class, log-likelihood per class) for --scores
+    scores = []  # (episode, start, end, class, log-likelihood and effect per class, true effect) for --scores
     for i, (episode, runs, recognitions) in enumerate(zip(test, pieces, results)):
         episode_rows, truths = [], []
         # a segment no class can explain is a miss; to the grammar it is no evidence (equal scores)
@@ -320,7 +321,8 @@ def main(argv: list[str] | None = None) -> dict:
                                  else None,
                                  "too_short": end - start < models[cid].model.min_frames})
             truths.append(truth)
-            scores.append((i, start, end, cid, [rec.log_likelihoods[c] for c in phmms]))
+            estimates = [models[c].effect(rec.phis[c]) if c in rec.phis else np.full(6, np.nan) for c in phmms]
+            scores.append((i, start, end, cid, [rec.log_likelihoods[c] for c in phmms], estimates, truth))
         for name, (smoothing, penalty) in GRAMMAR_DECODERS.items():
             try:
                 decoded, _ = grammars[smoothing].decode([rec.log_likelihoods for rec in recognitions], penalty)
@@ -336,10 +338,11 @@ def main(argv: list[str] | None = None) -> dict:
                     else None)
         rows += episode_rows
     if args.scores:
-        episode, start, end, true_class, log_likelihood = zip(*scores)
+        episode, start, end, true_class, log_likelihood, effect, true_effect = zip(*scores)
         np.savez_compressed(args.scores, classes=np.array(list(phmms)), episode=np.array(episode),
                             start=np.array(start), end=np.array(end), true_class=np.array(true_class),
-                            log_likelihood=np.array(log_likelihood))
+                            log_likelihood=np.array(log_likelihood), effect=np.array(effect),
+                            true_effect=np.array(true_effect))
     recognised = time.perf_counter()
 
     isolated = label_summary(rows, "recognised", "phi_error_cm")
