@@ -321,8 +321,9 @@ def main(argv: list[str] | None = None) -> dict:
                                  else None,
                                  "too_short": end - start < models[cid].model.min_frames})
             truths.append(truth)
-            estimates = [models[c].effect(rec.phis[c]) if c in rec.phis else np.full(6, np.nan) for c in phmms]
-            scores.append((i, start, end, cid, [rec.log_likelihoods[c] for c in phmms], estimates, truth))
+            if args.scores:
+                estimates = [models[c].effect(rec.phis[c]) if c in rec.phis else np.full(6, np.nan) for c in phmms]
+                scores.append((i, start, end, cid, [rec.log_likelihoods[c] for c in phmms], estimates, truth))
         for name, (smoothing, penalty) in GRAMMAR_DECODERS.items():
             try:
                 decoded, _ = grammars[smoothing].decode([rec.log_likelihoods for rec in recognitions], penalty)

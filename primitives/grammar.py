@@ -162,10 +162,9 @@ class ActionGrammar:
             if not penalty >= 0.0 or penalty == np.inf:
                 raise InvalidInputError(f"unexplained_penalty must be a finite number of nats >= 0 or None; got "
                                         f"{unexplained_penalty!r}")
-            finite = np.isfinite(log_frame)
-            best_finite = np.max(np.where(finite, log_frame, -np.inf), axis=1, initial=-np.inf)
-            floor = np.where(np.isfinite(best_finite), best_finite, 0.0) - penalty
-            log_frame = np.where(finite, log_frame, floor[:, None])
+            best = log_frame.max(axis=1)  # scores are finite or -inf (checked above)
+            floor = np.where(np.isfinite(best), best, 0.0) - penalty
+            log_frame = np.where(np.isfinite(log_frame), log_frame, floor[:, None])
         with np.errstate(divide="ignore"):
             log_t = np.log(self.transmat_)
         best, path = viterbi(log_t[0, 1 : n + 1], log_t[1 : n + 1, 1 : n + 1], log_frame, [len(log_frame)],
