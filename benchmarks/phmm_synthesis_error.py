@@ -55,7 +55,7 @@ FEATURES = {
     "linear": "phi = (u, v)",
     "bilinear": "phi = (u, v, u*v)",
     "quadratic": "phi = (u, v, u*v, u^2, v^2)",
-    "biquadratic": "phi = (u, v, uv, u^2, v^2, u^2 v, u v^2, u^2 v^2)",
+    "biquadratic": "phi = (u, v, u*v, u^2, v^2, u^2*v, u*v^2, u^2*v^2)",
 }
 
 
