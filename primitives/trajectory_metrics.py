@@ -13,7 +13,8 @@ part.  This module gives the three pieces and the choices made for each:
   reference frames -- divided by the number of markers, and square-rooted.  Averaging plainly over
   the path's steps would let a query that lingers (repeated frames) weigh more; measured on the
   reference's clock, pauses in the query do not change e, and a smooth re-timing changes it only
-  through sampling (its frames fall between the reference's).
+  through sampling (its frames fall between the reference's).  :func:`warped_point_errors` splits
+  it by marker, along the same alignment.
 * :func:`dtw_average`: DTW barycentre averaging (Petitjean et al., 2011) with each repetition
   counting once per average frame.  Start from the medoid (the repetition with the least summed DTW
   cost to the others); bring every repetition onto the average's clock (:func:`warp_to`: the mean of
@@ -35,7 +36,7 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["dtw_average", "dtw_path", "warp_to", "warped_rms_error"]
+__all__ = ["dtw_average", "dtw_path", "warp_to", "warped_point_errors", "warped_rms_error"]
 
 
 def _as_frames(X, name: str) -> np.ndarray:
@@ -136,6 +137,23 @@ def _mean_per_reference(values: np.ndarray, ref_index: np.ndarray, n_ref: int) -
     return sums / counts.reshape((-1,) + (1,) * (values.ndim - 1))
 
 
+def warped_point_errors(query, reference, point_dim: int = 3) -> np.ndarray:
+    """RMS distance of each point (marker) between ``query`` and ``reference`` along one DTW alignment.
+
+    Returns ``(D / point_dim,)`` values in the data's units; the alignment is of whole frames (as in
+    eq. 5), so the values show which markers carry :func:`warped_rms_error`, which is the root of their
+    mean square.
+    """
+    a, b = _pair(query, reference)
+    if not isinstance(point_dim, (int, np.integer)) or point_dim < 1 or a.shape[1] % point_dim:
+        raise InvalidInputError(f"point_dim must be a positive int dividing the frame size {a.shape[1]}; "
+                                f"got {point_dim!r}")
+    path, _ = dtw_path(a, b)
+    diff = (a[path[:, 0]] - b[path[:, 1]]).reshape(len(path), -1, point_dim)
+    per_reference = _mean_per_reference((diff * diff).sum(axis=2), path[:, 1], b.shape[0])
+    return np.sqrt(per_reference.mean(axis=0))
+
+
 def warped_rms_error(query, reference, point_dim: int = 3) -> float:
     """Eq. (5): RMS distance per point (marker) between ``query`` and ``reference`` after DTW.
 
@@ -146,14 +164,7 @@ def warped_rms_error(query, reference, point_dim: int = 3) -> float:
     sampling (frames of one movement fall between those of the other: at most half a frame's travel,
     added in quadrature).
     """
-    a, b = _pair(query, reference)
-    if not isinstance(point_dim, (int, np.integer)) or point_dim < 1 or a.shape[1] % point_dim:
-        raise InvalidInputError(f"point_dim must be a positive int dividing the frame size {a.shape[1]}; "
-                                f"got {point_dim!r}")
-    path, _ = dtw_path(a, b)
-    diff = a[path[:, 0]] - b[path[:, 1]]
-    per_reference = _mean_per_reference((diff * diff).sum(axis=1), path[:, 1], b.shape[0])
-    return float(np.sqrt(per_reference.mean() * point_dim / a.shape[1]))
+    return float(np.sqrt(np.mean(warped_point_errors(query, reference, point_dim) ** 2)))
 
 
 def dtw_average(sequences: Sequence[np.ndarray], n_iter: int = 30, tol: float = 1e-9) -> np.ndarray:

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.trajectory_metrics import dtw_average, dtw_path, warp_to, warped_rms_error
+from hoap_actions.primitives.trajectory_metrics import (
+    dtw_average,
+    dtw_path,
+    warp_to,
+    warped_point_errors,
+    warped_rms_error,
+)
 
 
 def all_paths(n: int, m: int):
@@ -92,6 +98,20 @@ def test_error_is_rms_over_markers():
     b = a.copy()
     b[:, 2, 1] += 0.03  # only the wrist is 3 cm off
     assert warped_rms_error(a, b) == pytest.approx(0.03 / np.sqrt(6), rel=1e-9)
+    # split by marker: all of it is the wrist's
+    np.testing.assert_allclose(warped_point_errors(a, b), [0, 0, 0.03, 0, 0, 0], atol=1e-12)
+
+
+def test_point_errors_are_the_rms_error_split_by_marker():
+    # known answer: offsets across the x-z plane the markers move in keep DTW on the diagonal
+    a = arm_curve()
+    c = a.copy()
+    c[:, 0, 1] += 0.01
+    c[:, 3, 1] -= 0.02
+    np.testing.assert_allclose(warped_point_errors(a, c), [0.01, 0, 0, 0.02, 0, 0], rtol=1e-9, atol=1e-12)
+    assert warped_rms_error(a, c) == pytest.approx(np.sqrt((0.01**2 + 0.02**2) / 6), rel=1e-9)
+    with pytest.raises(InvalidInputError):
+        warped_point_errors(np.zeros((5, 4)), np.zeros((5, 4)), point_dim=3)
 
 
 def test_error_invariant_to_time_warping_the_query():
