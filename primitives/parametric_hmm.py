@@ -350,7 +350,8 @@ class ParametricHMM:
             gain = total - history[-2] if len(history) > 1 else np.inf
             logger.debug("EM iteration %d: log-likelihood %.6f (gain %.3g)", it, total, gain)
             if gain < -1e-8 * abs(total):
-                logger.warning("EM log-likelihood fell by %.3g at iteration %d (numerical noise?)", -gain, it)
+                logger.warning("EM log-likelihood fell by %.3g at iteration %d: reg_covar and the ridge on W make the "
+                               "M-step inexact; a large fall points to states with few frames", -gain, it)
             self._m_step(batch, gamma, xi)
             if gain < self.tol:
                 converged = True
