@@ -115,32 +115,27 @@ def train(cells: dict, n_states: int, covariance_type: str, reg_covar: float, ki
                          tol=1e-3, random_state=0).fit(X, lengths, phi)
 
 
-def synthesis_map(model, test: dict, references: dict, kind: str = "linear"):
-    """Error e (m) of the model's synthesis at every test location, as a ``TEST_SHAPE`` map."""
+def synthesis_errors(model, test: dict, references: dict, kind: str = "linear"):
+    """Error e (m) of the model's synthesis at every test location, a ``TEST_SHAPE`` map, and each marker's
+    share along the same alignments (``TEST_SHAPE + (6,)``): which part of the arm the synthesis misses."""
     import numpy as np
 
-    from hoap_actions.primitives.trajectory_metrics import warped_rms_error
+    from hoap_actions.primitives.trajectory_metrics import warped_point_errors
 
-    errors = np.full(TEST_SHAPE, np.nan)
+    points = np.full(TEST_SHAPE + (6,), np.nan)
     for (row, col), reps in test.items():
         phi = features(np.mean([p for _, p in reps], axis=0), kind)[0]
-        errors[row, col] = warped_rms_error(model.synthesize(phi), references[row, col])
-    return errors
+        points[row, col] = warped_point_errors(model.synthesize(phi), references[row, col])
+    return np.sqrt(np.mean(points**2, axis=-1)), points
 
 
-def per_marker(model, test: dict, references: dict, kind: str = "linear") -> dict:
-    """Each marker's error (cm, RMS over the test grid) along eq. (5)'s alignment: which part of the arm
-    the synthesis misses."""
+def per_marker_summary(points) -> dict:
+    """Each marker's error (cm), RMS over the test grid."""
     import numpy as np
 
     from hoap_actions.envs.demonstrator import MARKER_NAMES
-    from hoap_actions.primitives.trajectory_metrics import warped_point_errors
 
-    errors = []
-    for (row, col), reps in test.items():
-        phi = features(np.mean([p for _, p in reps], axis=0), kind)[0]
-        errors.append(warped_point_errors(model.synthesize(phi), references[row, col]))
-    rms = np.sqrt(np.mean(np.square(errors), axis=0)) * 100
+    rms = np.sqrt(np.mean(points**2, axis=(0, 1))) * 100
     return {name: round(float(v), 3) for name, v in zip(MARKER_NAMES, rms)}
 
 
@@ -219,7 +214,7 @@ def diagnose(data: dict, test: dict, references, human, args) -> tuple[dict, lis
                 for reg_covar in (1e-6, 1e-5, 1e-4):
                     model = train(data[grid], n_states, covariance_type, reg_covar)
                     row = {"grid": grid, "n_states": n_states, "covariance_type": covariance_type,
-                           "reg_covar": reg_covar, **summary(synthesis_map(model, test, references), human)}
+                           "reg_covar": reg_covar, **summary(synthesis_errors(model, test, references)[0], human)}
                     del row["map_cm"]
                     out["sweep"].append(row)
                     print(f"  sweep {grid} K={n_states:2d} {covariance_type:4s} reg={reg_covar:.0e}: "
@@ -228,12 +223,12 @@ def diagnose(data: dict, test: dict, references, human, args) -> tuple[dict, lis
     for grid, kind in (("2x2", "bilinear"), ("3x3", "quadratic"), ("3x3", "biquadratic"), (TEST_GRID, "linear"),
                        (TEST_GRID, "quadratic")):
         model = train(data[grid], args.states, args.covariance_type, args.reg_covar, kind)
-        errors = synthesis_map(model, test, references, kind)
+        errors, points = synthesis_errors(model, test, references, kind)
         label = f"trained on {grid}, {FEATURES[kind]}" + (" (in-sample)" if grid == TEST_GRID else "")
-        out[f"{grid}_{kind}"] = {"description": label, **summary(errors, human),
-                                 "per_marker_cm": per_marker(model, test, references, kind)}
+        markers = per_marker_summary(points)
+        out[f"{grid}_{kind}"] = {"description": label, **summary(errors, human), "per_marker_cm": markers}
         print(f"  {label}: mean {errors.mean() * 100:.2f} max {errors.max() * 100:.2f} cm; per marker "
-              + ", ".join(f"{n} {v:.2f}" for n, v in out[f"{grid}_{kind}"]["per_marker_cm"].items()))
+              + ", ".join(f"{n} {v:.2f}" for n, v in markers.items()))
         panels.append((label, errors, train_cells(data, grid, test) if grid != TEST_GRID else []))
     # 40 interpolated state means at a single location: the floor of synthesis by a left-right HMM.
     floor = np.full(TEST_SHAPE, np.nan)
@@ -292,9 +287,10 @@ def main(argv: list[str] | None = None) -> dict:
     panels = [("demonstrator: repetitions vs their average", human, [])]
     for grid in TRAIN_GRIDS:
         model = train(data[grid], args.states, args.covariance_type, args.reg_covar)
-        errors = synthesis_map(model, test, references)
+        errors, points = synthesis_errors(model, test, references)
         res = summary(errors, human)
-        res.update(per_marker_cm=per_marker(model, test, references), n_train_movements=sum(len(r) for r in data[grid].values()), em_iterations=model.monitor_.n_iter,
+        res.update(per_marker_cm=per_marker_summary(points), n_train_movements=sum(len(r) for r in data[grid].values()),
+                   em_iterations=model.monitor_.n_iter,
                    em_converged=model.monitor_.converged,
                    goal_met=bool(res["mean_cm"] <= GOAL_MEAN_CM and res["locations_beating_or_tying_human"] == errors.size))
         result[f"synthesis_{grid}"] = res
