@@ -93,6 +93,14 @@ GRAMMAR_DECODERS = {
 }
 
 
+def _fraction(text: str) -> float:
+    """A number in (0, 1], for argparse."""
+    value = float(text)
+    if not 0.0 < value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1]; got {text}")
+    return value
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--train", type=Path, nargs="+", default=[Path("data/paper-s0.h5")],
@@ -103,8 +111,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--reg-covar", type=float, default=1e-5, help="m^2 added to covariance diagonals")
     parser.add_argument("--effect-tol", type=float, default=0.01, help="m, least spread of a kept phi direction")
     parser.add_argument("--max-states", type=int, default=40)
-    parser.add_argument("--state-fraction", type=float, default=1.0,
-                        help="states per frame of the class's shortest training segment")
+    parser.add_argument("--state-fraction", type=_fraction, default=1.0,
+                        help="states per frame of the class's shortest training segment, in (0, 1]")
     parser.add_argument("--topology", default="left-right", choices=("left-right", "left-right-skip"),
                         help="class chains; with skips a held-out piece needs only about half as many frames "
                              "(measured worse: see the module docstring)")
@@ -380,8 +388,8 @@ def main(argv: list[str] | None = None) -> dict:
         "protocol": {"train": [str(p) for p in args.train], "test": str(args.test),
                      "discovery": discovery.get_params(), "observations": "H + 0.1 s displacements" if args.velocity
                      else "H (6 markers x 3)", "covariance_type": args.covariance_type,
-                     "reg_covar_m2": args.reg_covar, "state_fraction": args.state_fraction, "effect_tol_m": args.effect_tol, "topology": args.topology,
-                     "n_restarts": args.n_restarts,
+                     "reg_covar_m2": args.reg_covar, "state_fraction": args.state_fraction,
+                     "effect_tol_m": args.effect_tol, "topology": args.topology, "n_restarts": args.n_restarts,
                      "held_out_cut": "PrimitiveDiscovery.predict on the held-out object trajectories"},
         "n_classes": len(models),
         "n_test_segments": len(rows),

@@ -117,26 +117,25 @@ def train(cells: dict, n_states: int, covariance_type: str, reg_covar: float, ki
 
 def synthesis_errors(model, test: dict, references: dict, kind: str = "linear"):
     """Error e (m) of the model's synthesis at every test location, a ``TEST_SHAPE`` map, and each marker's
-    share along the same alignments (``TEST_SHAPE + (6,)``): which part of the arm the synthesis misses."""
+    share along the same alignments (``TEST_SHAPE + (markers,)``): which part of the arm the synthesis misses."""
     import numpy as np
 
+    from hoap_actions.primitives.datasets import N_MARKERS
     from hoap_actions.primitives.trajectory_metrics import warped_point_errors
 
-    points = np.full(TEST_SHAPE + (6,), np.nan)
+    points = np.full(TEST_SHAPE + (N_MARKERS,), np.nan)
     for (row, col), reps in test.items():
         phi = features(np.mean([p for _, p in reps], axis=0), kind)[0]
         points[row, col] = warped_point_errors(model.synthesize(phi), references[row, col])
     return np.sqrt(np.mean(points**2, axis=-1)), points
 
 
-def per_marker_summary(points) -> dict:
-    """Each marker's error (cm), RMS over the test grid."""
+def per_marker_summary(points, marker_names) -> dict:
+    """Each marker's error (cm), RMS over the test grid, by the dataset's marker names."""
     import numpy as np
 
-    from hoap_actions.envs.demonstrator import MARKER_NAMES
-
     rms = np.sqrt(np.mean(points**2, axis=(0, 1))) * 100
-    return {name: round(float(v), 3) for name, v in zip(MARKER_NAMES, rms)}
+    return {name: round(float(v), 3) for name, v in zip(marker_names, rms, strict=True)}
 
 
 def summary(errors, human=None) -> dict:
@@ -200,7 +199,7 @@ def plot_maps(path: Path, panels: list[tuple[str, object, list]], axes, title: s
     plt.close(fig)
 
 
-def diagnose(data: dict, test: dict, references, human, args) -> tuple[dict, list]:
+def diagnose(data: dict, test: dict, references, human, marker_names, args) -> tuple[dict, list]:
     """What limits the synthesis error (see the module docstring); returns results and extra map panels."""
     import numpy as np
 
@@ -225,7 +224,7 @@ def diagnose(data: dict, test: dict, references, human, args) -> tuple[dict, lis
         model = train(data[grid], args.states, args.covariance_type, args.reg_covar, kind)
         errors, points = synthesis_errors(model, test, references, kind)
         label = f"trained on {grid}, {FEATURES[kind]}" + (" (in-sample)" if grid == TEST_GRID else "")
-        markers = per_marker_summary(points)
+        markers = per_marker_summary(points, marker_names)
         out[f"{grid}_{kind}"] = {"description": label, **summary(errors, human), "per_marker_cm": markers}
         print(f"  {label}: mean {errors.mean() * 100:.2f} max {errors.max() * 100:.2f} cm; per marker "
               + ", ".join(f"{n} {v:.2f}" for n, v in markers.items()))
@@ -263,7 +262,8 @@ def main(argv: list[str] | None = None) -> dict:
 
         record("approach-grid", args.data)
     started = time.perf_counter()
-    data = approach_segments(load_demonstrations(args.data))
+    demos = load_demonstrations(args.data)
+    data = approach_segments(demos)
     test = data[TEST_GRID]
     references = np.empty(TEST_SHAPE, dtype=object)
     human = np.full(TEST_SHAPE, np.nan)
@@ -289,7 +289,8 @@ def main(argv: list[str] | None = None) -> dict:
         model = train(data[grid], args.states, args.covariance_type, args.reg_covar)
         errors, points = synthesis_errors(model, test, references)
         res = summary(errors, human)
-        res.update(per_marker_cm=per_marker_summary(points), n_train_movements=sum(len(r) for r in data[grid].values()),
+        res.update(per_marker_cm=per_marker_summary(points, demos.marker_names),
+                   n_train_movements=sum(len(r) for r in data[grid].values()),
                    em_iterations=model.monitor_.n_iter,
                    em_converged=model.monitor_.converged,
                    goal_met=bool(res["mean_cm"] <= GOAL_MEAN_CM and res["locations_beating_or_tying_human"] == errors.size))
@@ -305,7 +306,7 @@ def main(argv: list[str] | None = None) -> dict:
               f"({args.states}-state linear PHMM; red: training locations)")
     result["figure"] = png.name
     if args.diagnose:
-        result["diagnosis"], extra = diagnose(data, test, references, human, args)
+        result["diagnosis"], extra = diagnose(data, test, references, human, demos.marker_names, args)
         diag_png = args.output.with_name(args.output.stem + "_diagnosis.png")
         plot_maps(diag_png, extra[:-1], axes, "What limits the synthesis: richer effect features, and the best "
                   "linear / quadratic PHMM fit in-sample on the test grid")
