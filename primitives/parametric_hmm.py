@@ -6,18 +6,21 @@ demonstrations and their effects; it then synthesises a prototype movement for a
 (left-right models, as in the paper), scores a movement, estimates the effect that best explains a
 movement, and recognises which class a movement belongs to.
 
-File format of :meth:`ParametricHMM.save` (``format_version`` 1), an uncompressed ``.npz`` archive
+File format of :meth:`ParametricHMM.save` (``format_version`` 2; version 1 files, written before the
+covariance prior existed, load as models without one), an uncompressed ``.npz`` archive
 readable with ``numpy.load(path, allow_pickle=False)``; every entry is a plain numeric or unicode array:
 
 =======================  ===================  ===============================================================
 key                      shape                meaning
 =======================  ===================  ===============================================================
-format_version           () int               1
+format_version           () int               2
 kind                     () str               "ParametricHMM"
 n_states, n_iter         () int               hyper-parameters as given to ``__init__``
 topology                 () str               "left-right", "left-right-skip" or "ergodic"
 covariance_type          () str               "full" or "diag"
 tol, reg_covar           () float             hyper-parameters
+covars_prior             (0,) or (D,)         prior variances (empty: no prior)
+covars_weight            () float             the prior's weight in frames per state
 random_state             (0,) or (1,) int     the seed; empty when it was not an int (None or a Generator)
 startprob_               (K,)                 initial state distribution
 transmat_                (K, K)               transition matrix (rows sum to 1)
@@ -64,7 +67,8 @@ __all__ = ["EMReport", "NStatesSelection", "ParametricHMM", "Recognition", "reco
 
 logger = logging.getLogger(__name__)
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+_READABLE_VERSIONS = (1, 2)
 _TOPOLOGIES = ("left-right", "left-right-skip", "ergodic")
 # Share of a left-right-skip chain's initial moves that skip a state: EM only rescales transitions it
 # starts with, so skips must start non-zero; the training data then decide how often they are taken.
@@ -139,13 +143,22 @@ class ParametricHMM:
         At most ``n_iter`` EM iterations; stop when the total training log-likelihood gains less than ``tol``.
     reg_covar:
         Added to every covariance diagonal, keeping covariances positive definite.
+    covars_prior, covars_weight:
+        Optional conjugate prior on the state covariances: prior variances ``(D,)`` worth
+        ``covars_weight`` frames of every state.  Each M-step then takes the MAP covariance
+        ``(scatter_j + w diag(prior)) / (occupancy_j + w)``, so a state seen in a handful of frames (a
+        class with few demonstrations) borrows the prior's spread instead of collapsing onto
+        ``reg_covar`` and ruling out every movement that differs from its few examples.  EM then
+        climbs the log-likelihood plus the prior's log-density, which is what
+        ``log_likelihood_history_`` records.
     random_state:
         Seed or Generator for the random restarts of :meth:`estimate_params`.
     """
 
     def __init__(self, n_states: int = 10, topology: str = "left-right", covariance_type: str = "full",
                  n_iter: int = 50, tol: float = 1e-4, reg_covar: float = 1e-6,
-                 random_state: int | np.random.Generator | None = None) -> None:
+                 random_state: int | np.random.Generator | None = None, covars_prior=None,
+                 covars_weight: float = 1.0) -> None:
         self.n_states = n_states
         self.topology = topology
         self.covariance_type = covariance_type
@@ -153,11 +166,14 @@ class ParametricHMM:
         self.tol = tol
         self.reg_covar = reg_covar
         self.random_state = random_state
+        self.covars_prior = covars_prior
+        self.covars_weight = covars_weight
 
     def __repr__(self) -> str:
         return (f"ParametricHMM(n_states={self.n_states!r}, topology={self.topology!r}, "
                 f"covariance_type={self.covariance_type!r}, n_iter={self.n_iter!r}, tol={self.tol!r}, "
-                f"reg_covar={self.reg_covar!r}, random_state={self.random_state!r})")
+                f"reg_covar={self.reg_covar!r}, random_state={self.random_state!r}, "
+                f"covars_prior={self.covars_prior!r}, covars_weight={self.covars_weight!r})")
 
     # ------------------------------------------------------------------------------- checks
     def _check_hyper_parameters(self) -> None:
@@ -173,6 +189,18 @@ class ParametricHMM:
             raise InvalidInputError(f"tol must be a finite float >= 0; got {self.tol!r}")
         if not (_is_real(self.reg_covar) and self.reg_covar >= 0):
             raise InvalidInputError(f"reg_covar must be a finite float >= 0; got {self.reg_covar!r}")
+        if not (_is_real(self.covars_weight) and self.covars_weight >= 0):
+            raise InvalidInputError(f"covars_weight must be a finite float >= 0; got {self.covars_weight!r}")
+
+    def _prior_variances(self, n_features: int) -> np.ndarray | None:
+        """``covars_prior`` as a checked (D,) float array, or None without a prior."""
+        if self.covars_prior is None:
+            return None
+        prior = np.asarray(self.covars_prior, dtype=float)
+        if prior.shape != (n_features,) or not np.all(np.isfinite(prior)) or np.any(prior <= 0):
+            raise InvalidInputError(f"covars_prior must be {n_features} finite prior variances > 0 (one per "
+                                    f"feature) or None; got shape {prior.shape}")
+        return prior
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "W_"):
@@ -271,6 +299,10 @@ class ParametricHMM:
         else:
             scatter = (sxx - 2.0 * np.diagonal(cross, axis1=1, axis2=2) + np.diagonal(fit, axis1=1, axis2=2))
         weights = np.where(visited, total, 1.0)
+        if self._prior is not None:  # MAP under the conjugate prior
+            w = float(self.covars_weight)
+            scatter = scatter + w * (np.diag(self._prior) if self.covariance_type == "full" else self._prior)
+            weights = weights + w
         covars = scatter / weights.reshape((-1,) + (1,) * (scatter.ndim - 1))
         if self.covariance_type == "full":
             covars[:, np.arange(d), np.arange(d)] += self.reg_covar
@@ -310,6 +342,7 @@ class ParametricHMM:
             raise InvalidInputError(f"{short.size} sequence(s) (first: #{short[0]}, {lengths[short[0]]} frames) are "
                                     f"shorter than the {k}-state left-right chain; every sequence needs >= n_states "
                                     "frames (use fewer states or drop the short sequences)")
+        self._prior = self._prior_variances(X.shape[1])
         batch = _Batch.build(X, lengths, phi, X.mean(axis=0), self.covariance_type)
         for name in ("W_", "mean_bar_", "covars_", "transmat_", "startprob_"):
             self.__dict__.pop(name, None)
@@ -342,7 +375,7 @@ class ParametricHMM:
                 ll, gamma, xi = self._e_step(batch)
             except InvalidInputError as exc:
                 raise InvalidInputError(f"EM iteration {it}: {exc}; increase reg_covar (now {self.reg_covar})") from exc
-            total = float(ll.sum())
+            total = float(ll.sum()) + self._log_prior()
             if not np.isfinite(total):
                 raise InvalidInputError(f"EM iteration {it}: a training sequence has zero likelihood under the "
                                         "current model; check the data for outliers or increase reg_covar")
@@ -358,6 +391,18 @@ class ParametricHMM:
                 break
         self.log_likelihood_history_ = np.array(history)
         self.monitor_ = EMReport(tuple(history), converged, len(history))
+
+    def _log_prior(self) -> float:
+        """Log-density (up to a constant) of the covariances under the prior: the part of the EM objective
+        besides the log-likelihood, ``-w/2 sum_j (tr(diag(prior) S_j^-1) + log det S_j)``; 0 without one."""
+        if self._prior is None:
+            return 0.0
+        if self.covariance_type == "full":
+            inverse_diagonal = np.diagonal(np.linalg.inv(self.covars_), axis1=1, axis2=2)
+            log_det = np.linalg.slogdet(self.covars_)[1]
+        else:
+            inverse_diagonal, log_det = 1.0 / self.covars_, np.log(self.covars_).sum(axis=1)
+        return float(-0.5 * self.covars_weight * np.sum(inverse_diagonal @ self._prior + log_det))
 
     # ----------------------------------------------------------------------------- inference
     def score(self, X, phi) -> float:
@@ -491,6 +536,8 @@ class ParametricHMM:
             "tol": np.array(float(self.tol)),
             "reg_covar": np.array(float(self.reg_covar)),
             "random_state": np.array([int(seed)] if isinstance(seed, (int, np.integer)) else [], dtype=np.int64),
+            "covars_prior": np.zeros(0) if self.covars_prior is None else np.asarray(self.covars_prior, dtype=float),
+            "covars_weight": np.array(float(self.covars_weight)),
             "startprob_": self.startprob_,
             "transmat_": self.transmat_,
             "mean_bar_": self.mean_bar_,
@@ -528,15 +575,19 @@ class ParametricHMM:
         version = arrays.get("format_version")
         if version is None or version.shape != () or str(arrays.get("kind", "")) != "ParametricHMM":
             raise DataFileError(f"{path} is not a ParametricHMM file (no format_version/kind entries)")
-        if int(version) != FORMAT_VERSION:
+        if int(version) not in _READABLE_VERSIONS:
             raise DataFileError(f"{path} has format_version {int(version)}; this version of hoap_actions reads "
-                                f"format_version {FORMAT_VERSION} only")
+                                f"format_versions {_READABLE_VERSIONS}")
         try:
             seed = arrays["random_state"]
             model = cls(n_states=int(arrays["n_states"]), topology=str(arrays["topology"]),
                         covariance_type=str(arrays["covariance_type"]), n_iter=int(arrays["n_iter"]),
                         tol=float(arrays["tol"]), reg_covar=float(arrays["reg_covar"]),
                         random_state=int(seed[0]) if seed.size else None)
+            if int(version) >= 2:
+                prior = np.asarray(arrays["covars_prior"], dtype=np.float64)
+                model.covars_prior = prior if prior.size else None
+                model.covars_weight = float(arrays["covars_weight"])
             model._check_hyper_parameters()
             k = model.n_states
             mean_bar = np.asarray(arrays["mean_bar_"], dtype=np.float64)

@@ -117,6 +117,39 @@ def test_log_likelihood_rises_monotonically(data, covariance_type, topology):
     assert history[-1] > history[0]
 
 
+@pytest.mark.parametrize("covariance_type", ["full", "diag"])
+@pytest.mark.parametrize("topology", ["left-right", "ergodic"])
+def test_objective_with_covariance_prior_rises_monotonically(data, covariance_type, topology):
+    X, lengths, phis, _ = data
+    m = ParametricHMM(n_states=K, topology=topology, covariance_type=covariance_type, n_iter=25, tol=1e-9,
+                      covars_prior=np.full(D, 0.01), covars_weight=5.0)
+    history = m.fit(X, lengths, phis).log_likelihood_history_
+    assert history.size >= 4
+    assert np.all(np.diff(history) >= -1e-9 * np.abs(history[1:]))
+    assert history[-1] > history[0]
+
+
+@pytest.mark.parametrize("covariance_type", ["full", "diag"])
+def test_covariance_prior_gives_the_map_covariance(covariance_type):
+    """One state: the M-step's covariance is (scatter + w prior) / (frames + w) + reg_covar, with the
+    scatter about the same regression fit as without a prior (the mean does not depend on it)."""
+    rng = np.random.default_rng(5)
+    w = rng.normal(size=(D, P))
+    phis = rng.uniform(-1, 1, size=(6, P))
+    X = np.concatenate([phi @ w.T + SD * rng.normal(size=(4, D)) for phi in phis])
+    lengths = np.full(6, 4)
+    prior, weight = np.array([0.01, 0.02, 0.03]), 7.0
+    plain = ParametricHMM(n_states=1, covariance_type=covariance_type, n_iter=1).fit(X, lengths, phis)
+    shrunk = ParametricHMM(n_states=1, covariance_type=covariance_type, n_iter=1, covars_prior=prior,
+                           covars_weight=weight).fit(X, lengths, phis)
+    np.testing.assert_allclose(shrunk.W_, plain.W_, atol=1e-12)
+    scatter = (plain.covars_[0] - plain.reg_covar * (np.eye(D) if covariance_type == "full" else 1.0)) * len(X)
+    prior_matrix = np.diag(prior) if covariance_type == "full" else prior
+    expected = (scatter + weight * prior_matrix) / (len(X) + weight)
+    expected = expected + plain.reg_covar * (np.eye(D) if covariance_type == "full" else 1.0)
+    np.testing.assert_allclose(shrunk.covars_[0], expected, rtol=1e-10)
+
+
 def test_m_step_for_w_matches_weighted_least_squares(data):
     # With posteriors fixed, Z_j = [W_j mu_bar_j] is the weighted least-squares fit of frames on [phi; 1].
     X, lengths, phis, _ = data
@@ -238,7 +271,28 @@ def test_save_load_round_trip(model, data, tmp_path):
     assert loaded.score(x, phis[0]) == model.score(x, phis[0])
     np.testing.assert_allclose(loaded.synthesize(phis[1]), model.synthesize(phis[1]), rtol=1e-14)
     with np.load(path, allow_pickle=False) as raw:
-        assert int(raw["format_version"]) == 1 and str(raw["topology"]) == "left-right"
+        assert int(raw["format_version"]) == 2 and str(raw["topology"]) == "left-right"
+        assert raw["covars_prior"].shape == (0,)
+
+
+def test_save_load_keeps_the_covariance_prior_and_reads_version_1_files(data, tmp_path):
+    X, lengths, phis, _ = data
+    prior = np.full(D, 0.02)
+    m = ParametricHMM(n_states=K, covariance_type="diag", covars_prior=prior, covars_weight=3.0,
+                      random_state=0).fit(X, lengths, phis)
+    m.save(tmp_path / "prior.npz")
+    loaded = ParametricHMM.load(tmp_path / "prior.npz")
+    np.testing.assert_array_equal(loaded.covars_prior, prior)
+    assert loaded.covars_weight == 3.0
+    np.testing.assert_array_equal(loaded.covars_, m.covars_)
+    # a version-1 file (no prior entries) is a model without a prior
+    with np.load(tmp_path / "prior.npz", allow_pickle=False) as raw:
+        old = {key: raw[key] for key in raw.files if key not in ("covars_prior", "covars_weight")}
+    old["format_version"] = np.array(1)
+    np.savez(tmp_path / "v1.npz", **old)
+    v1 = ParametricHMM.load(tmp_path / "v1.npz")
+    assert v1.covars_prior is None and v1.covars_weight == 1.0
+    np.testing.assert_array_equal(v1.covars_, m.covars_)
 
 
 def test_save_refuses_to_overwrite(model, tmp_path):
@@ -261,8 +315,8 @@ def test_load_rejects_bad_files(model, tmp_path):
     model.save(good)
     with np.load(good) as raw:
         arrays = dict(raw)
-    np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(2)})
-    with pytest.raises(DataFileError, match="format_version 2"):
+    np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(3)})
+    with pytest.raises(DataFileError, match="format_version 3"):
         ParametricHMM.load(tmp_path / "future.npz")
     np.savez(tmp_path / "truncated.npz", **{k: v for k, v in arrays.items() if k != "W_"})
     with pytest.raises(DataFileError, match="W_"):
@@ -341,7 +395,9 @@ def test_bad_hyper_parameters(data):
     X, lengths, phis, _ = data
     for kwargs, match in (({"topology": "circular"}, "topology"), ({"covariance_type": "tied"}, "covariance_type"),
                           ({"n_states": 0}, "n_states"), ({"n_iter": 0}, "n_iter"), ({"tol": -1.0}, "tol"),
-                          ({"reg_covar": float("nan")}, "reg_covar")):
+                          ({"reg_covar": float("nan")}, "reg_covar"), ({"covars_weight": -1.0}, "covars_weight"),
+                          ({"covars_prior": np.ones(D + 1)}, "covars_prior must be 3 finite"),
+                          ({"covars_prior": -np.ones(D)}, "covars_prior must be 3 finite")):
         with pytest.raises(InvalidInputError, match=match):
             ParametricHMM(**kwargs).fit(X, lengths, phis)
 
