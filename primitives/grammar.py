@@ -18,7 +18,6 @@ from collections.abc import Hashable, Mapping, Sequence
 import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.primitives.hmm_math import viterbi
 from hoap_actions.primitives.json_files import read_json_model, write_json_model
 
 FORMAT_VERSION = 1
@@ -127,7 +126,9 @@ class ActionGrammar:
         return {t: float(p) for t, p in zip(targets, row[1:]) if p > 0}
 
     def decode(self, segment_scores: Sequence[Mapping[Symbol, float]],
-               unexplained_penalty: float | None = None) -> tuple[list[Symbol], float]:
+               unexplained_penalty: float | None = None,
+               pair_scores: Sequence[Mapping[tuple[Symbol, Symbol], float]] | None = None,
+               ) -> tuple[list[Symbol], float]:
         """Most probable class sequence for consecutive segments, given each segment's class log-likelihoods.
 
         Maximises ``log P(sequence | grammar) + sum_i segment_scores[i][class_i]`` by Viterbi over the
@@ -141,6 +142,12 @@ class ActionGrammar:
         through those classes: each such class scores the segment's best finite score minus the
         penalty instead, and a segment no class explains leaves the choice to the grammar.  Without
         it, one unexplainable segment forces its neighbours onto whatever other path stays finite.
+
+        ``pair_scores`` (one mapping per pair of neighbouring segments, ``len(segment_scores) - 1`` of
+        them) adds evidence that depends on both classes of a pair: ``pair_scores[i][(a, b)]`` (nats,
+        finite or -inf; missing pairs add 0) is added when segment ``i`` is ``a`` and segment ``i + 1``
+        is ``b``, e.g. whether the effects the two classes estimate for the two segments join up
+        (:func:`hoap_actions.primitives.effect_continuity.effect_gap_scores`).
         """
         self._check_fitted()
         if isinstance(segment_scores, Mapping) or not len(segment_scores):
@@ -167,13 +174,38 @@ class ActionGrammar:
             log_frame = np.where(np.isfinite(log_frame), log_frame, floor[:, None])
         with np.errstate(divide="ignore"):
             log_t = np.log(self.transmat_)
-        best, path = viterbi(log_t[0, 1 : n + 1], log_t[1 : n + 1, 1 : n + 1], log_frame, [len(log_frame)],
-                             log_endprob=log_t[1 : n + 1, n + 1])
-        if not np.isfinite(best[0]):
+        steps = np.broadcast_to(log_t[1 : n + 1, 1 : n + 1], (len(log_frame) - 1, n, n))
+        if pair_scores is not None:
+            steps = steps + self._pair_matrices(pair_scores, len(log_frame))
+        best, path = _viterbi_steps(log_t[0, 1 : n + 1], steps, log_frame, log_t[1 : n + 1, n + 1])
+        if not np.isfinite(best):
             raise InvalidInputError(f"no class sequence of length {len(log_frame)} is both grammatical and has "
                                     "finite segment scores; fit the grammar with smoothing > 0 to allow unseen "
                                     "transitions")
-        return [self.symbols_[k] for k in path], float(best[0])
+        return [self.symbols_[k] for k in path], best
+
+    def _pair_matrices(self, pair_scores: Sequence[Mapping[tuple[Symbol, Symbol], float]], n_segments: int
+                       ) -> np.ndarray:
+        """``pair_scores`` as (n_segments - 1, n, n) log-scores in the order of ``symbols_``, checked."""
+        if isinstance(pair_scores, Mapping) or len(pair_scores) != n_segments - 1:
+            raise InvalidInputError(f"pair_scores must be a list with one {{(class, class): log-score}} mapping per "
+                                    f"pair of neighbouring segments ({n_segments - 1}); got {pair_scores!r:.80}")
+        index = self._index()
+        out = np.zeros((n_segments - 1, len(self.symbols_), len(self.symbols_)))
+        for i, scores in enumerate(pair_scores):
+            if not isinstance(scores, Mapping):
+                raise InvalidInputError(f"pair_scores[{i}] must map (class, class) pairs to log-scores, got "
+                                        f"{scores!r:.80}")
+            for pair, value in scores.items():
+                if not (isinstance(pair, tuple) and len(pair) == 2):
+                    raise InvalidInputError(f"pair_scores[{i}] keys must be (class, class) tuples; got {pair!r}")
+                value = float(value)
+                if np.isnan(value) or value == np.inf:
+                    raise InvalidInputError(f"pair_scores[{i}][{pair!r}] is {value}; log-scores must be finite or -inf")
+                a, b = pair
+                if a in index and b in index:  # classes the grammar does not know are ignored, as in segment_scores
+                    out[i, index[a] - 1, index[b] - 1] = value
+        return out
 
     def sample(self, random_state: int | np.random.Generator | None = None) -> list[Symbol]:
         """Draw one grammatical class sequence: walk the seen transitions with their (smoothed) probabilities.
@@ -287,3 +319,22 @@ def _check_sequences(sequences: Sequence[Sequence[Symbol]]) -> list[list[Symbol]
 def _dot_id(name: str) -> str:
     """A quoted DOT identifier."""
     return '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _viterbi_steps(log_start: np.ndarray, log_steps: np.ndarray, log_frame: np.ndarray, log_end: np.ndarray
+                   ) -> tuple[float, list[int]]:
+    """Best path and its log-score through ``len(log_frame)`` segments with a transition matrix per step
+    (``log_steps``, (T - 1, n, n)): the grammar's, plus any pair scores."""
+    delta = log_start + log_frame[0]
+    back = []
+    for step, frame in zip(log_steps, log_frame[1:]):
+        candidates = delta[:, None] + step
+        back.append(candidates.argmax(axis=0))
+        delta = candidates.max(axis=0) + frame
+    delta = delta + log_end
+    state = int(delta.argmax())
+    path = [state]
+    for pointers in reversed(back):
+        state = int(pointers[state])
+        path.append(state)
+    return float(delta.max()), path[::-1]

@@ -176,6 +176,52 @@ def test_decode_agrees_with_brute_force_over_every_sequence():
         assert total == pytest.approx(grammar.log_probability(best) + sum(s[c] for s, c in zip(scores, best)))
 
 
+def test_decode_with_pair_scores_agrees_with_brute_force():
+    grammar = ActionGrammar(smoothing=0.3).fit(PIECES + [["approach", "push-1", "remove"]])
+    rng = np.random.default_rng(1)
+    symbols = grammar.symbols_
+    for length in (1, 2, 3, 4):
+        scores = [dict(zip(symbols, rng.normal(0.0, 3.0, len(symbols)))) for _ in range(length)]
+        pairs = [{(a, b): rng.normal(0.0, 3.0) for a in symbols for b in symbols if rng.random() < 0.7}
+                 for _ in range(length - 1)]
+
+        def total(seq):
+            return (grammar.log_probability(seq) + sum(s[c] for s, c in zip(scores, seq))
+                    + sum(p.get((a, b), 0.0) for p, a, b in zip(pairs, seq, seq[1:])))
+
+        best = max((list(seq) for seq in itertools.product(symbols, repeat=length)), key=total)
+        decoded, score = grammar.decode(scores, pair_scores=pairs)
+        assert decoded == best
+        assert score == pytest.approx(total(best))
+
+
+def test_decode_pair_scores_can_overturn_the_segment_scores():
+    grammar = ActionGrammar().fit(PIECES + [["approach", "push-1", "push-3", "remove"],
+                                            ["approach", "push-1", "push-2", "remove"]])
+    # the third segment looks more like push-3 than push-2, by more than the grammar's preference
+    scores = [{"approach": 0.0}, {"push-1": 0.0}, {"push-2": -6.0, "push-3": 0.0}, {"remove": 0.0}]
+    assert grammar.decode(scores)[0] == ["approach", "push-1", "push-3", "remove"]
+    # the effects the two pieces estimate do not join up as push-1 -> push-3: 10 nats against it
+    pairs = [{}, {("push-1", "push-3"): -10.0, ("push-1", "push-2"): 0.0}, {}]
+    decoded, total = grammar.decode(scores, pair_scores=pairs)
+    assert decoded == ["approach", "push-1", "push-2", "remove"]
+    assert total == pytest.approx(grammar.log_probability(decoded) - 6.0)
+
+
+def test_decode_pair_scores_bad_input(grammar):
+    scores = [{"approach": 0.0}, {"remove": 0.0}]
+    with pytest.raises(InvalidInputError, match="one .* mapping per pair"):
+        grammar.decode(scores, pair_scores=[])
+    with pytest.raises(InvalidInputError, match="one .* mapping per pair"):
+        grammar.decode(scores, pair_scores={("approach", "remove"): 0.0})
+    with pytest.raises(InvalidInputError, match="must map"):
+        grammar.decode(scores, pair_scores=[[0.0]])
+    with pytest.raises(InvalidInputError, match="tuples"):
+        grammar.decode(scores, pair_scores=[{"approach": 0.0}])
+    with pytest.raises(InvalidInputError, match="finite or -inf"):
+        grammar.decode(scores, pair_scores=[{("approach", "remove"): float("nan")}])
+
+
 def test_decode_lets_the_grammar_separate_look_alike_pieces():
     grammar = ActionGrammar().fit(PIECES)
     pieces = ["push-1", "push-2", "push-3"]
