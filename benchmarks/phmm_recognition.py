@@ -114,20 +114,14 @@ GRAMMAR_DECODERS = {
 }
 
 
-def _fraction(text: str) -> float:
-    """A number in (0, 1], for argparse."""
-    value = float(text)
-    if not 0.0 < value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1]; got {text}")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    """A number >= 0, for argparse."""
-    value = float(text)
-    if not value >= 0.0:
-        raise argparse.ArgumentTypeError(f"must be >= 0; got {text}")
-    return value
+def _number_in(low: float, high: float, low_included: bool):
+    """An argparse type: a number in [low, high] (or (low, high] when ``low_included`` is False)."""
+    def parse(text: str) -> float:
+        value = float(text)
+        if not ((low <= value) if low_included else (low < value)) or not value <= high:
+            raise argparse.ArgumentTypeError(f"must be in {'[' if low_included else '('}{low}, {high}]; got {text}")
+        return value
+    return parse
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -138,12 +132,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--record", action="store_true", help="record missing datasets (paper preset, seeds 0 / 1)")
     parser.add_argument("--covariance-type", default="diag", choices=("full", "diag"))
     parser.add_argument("--reg-covar", type=float, default=1e-5, help="m^2 added to covariance diagonals")
-    parser.add_argument("--covars-weight", type=_non_negative, default=5.0,
+    parser.add_argument("--covars-weight", type=_number_in(0.0, float("inf"), True), default=5.0,
                         help="frames per state of a prior on the manipulation pieces' state variances, pooled over "
                              "those pieces (0: no prior)")
     parser.add_argument("--effect-tol", type=float, default=0.01, help="m, least spread of a kept phi direction")
     parser.add_argument("--max-states", type=int, default=40)
-    parser.add_argument("--state-fraction", type=_fraction, default=1.0,
+    parser.add_argument("--state-fraction", type=_number_in(0.0, 1.0, False), default=1.0,
                         help="states per frame of the class's shortest training segment, in (0, 1]")
     parser.add_argument("--topology", default="left-right", choices=("left-right", "left-right-skip"),
                         help="class chains; with skips a held-out piece needs only about half as many frames "

@@ -324,7 +324,8 @@ def _dot_id(name: str) -> str:
 def _viterbi_steps(log_start: np.ndarray, log_steps: np.ndarray, log_frame: np.ndarray, log_end: np.ndarray
                    ) -> tuple[float, list[int]]:
     """Best path and its log-score through ``len(log_frame)`` segments with a transition matrix per step
-    (``log_steps``, (T - 1, n, n)): the grammar's, plus any pair scores."""
+    (``log_steps``, (T - 1, n, n)): the grammar's, plus any pair scores.  :func:`hmm_math.viterbi` shares one
+    transition matrix across steps (the batched HMM hot path); a demonstration has a handful of segments."""
     delta = log_start + log_frame[0]
     back = []
     for step, frame in zip(log_steps, log_frame[1:]):
