@@ -86,6 +86,7 @@ The phi error median stays at 0.37-0.51 cm.  More demonstrations help the pieces
 is a class with 1-8 training segments per recording.
 
     python benchmarks/phmm_recognition.py --train /work/data/paper-s0.h5 --test /work/data/paper-s1.h5 [--record]
+    python benchmarks/phmm_recognition.py --train s0.h5 s2.h5 ... s11.h5 --test s6.h5 --test-seed 6 --record
 
 Writes ``benchmarks/results/phmm_recognition.json`` and ``.png``.
 """
@@ -144,9 +145,11 @@ def _number_in(low: float, high: float, low_included: bool):
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--train", type=Path, nargs="+", default=[Path("data/paper-s0.h5")],
-                        help="paper preset recording(s) to train on (--record makes them with seeds 0, 2, 3, ...)")
-    parser.add_argument("--test", type=Path, default=Path("data/paper-s1.h5"), help="paper preset, seed 1")
-    parser.add_argument("--record", action="store_true", help="record missing datasets (paper preset, seeds 0 / 1)")
+                        help="paper preset recording(s) to train on (--record makes them with seeds 0, 2, 3, ... "
+                             "skipping --test-seed)")
+    parser.add_argument("--test", type=Path, default=Path("data/paper-s1.h5"), help="held-out paper preset recording")
+    parser.add_argument("--test-seed", type=int, default=1, help="seed --record makes the held-out recording with")
+    parser.add_argument("--record", action="store_true", help="record missing datasets (paper preset)")
     parser.add_argument("--covariance-type", default="diag", choices=("full", "diag"))
     parser.add_argument("--reg-covar", type=float, default=1e-5, help="m^2 added to covariance diagonals")
     parser.add_argument("--covars-weight", type=_number_in(0.0, float("inf"), True), default=5.0,
@@ -181,6 +184,12 @@ class ClassModel:
     def effect(self, phi):
         """The 6-D effect (initial xyz, final xyz) for a reduced phi."""
         return self.centre + self.basis @ phi
+
+
+def training_seeds(n: int, test_seed: int) -> list[int]:
+    """Seeds ``--record`` gives ``n`` training recordings: 0, 2, 3, ..., never seed 1 (the default
+    held-out recording) nor ``test_seed``."""
+    return [seed for seed in range(n + 2) if seed not in (1, test_seed)][:n]
 
 
 def reduce_effects(effects, tol: float):
@@ -347,8 +356,7 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.primitives.grammar import ActionGrammar
     from hoap_actions.primitives.parametric_hmm import Recognition
 
-    train_seeds = [0, *range(2, len(args.train) + 1)]  # seed 1 is the held-out recording
-    for path, seed in [*zip(args.train, train_seeds), (args.test, 1)]:
+    for path, seed in [*zip(args.train, training_seeds(len(args.train), args.test_seed)), (args.test, args.test_seed)]:
         if args.record and not path.exists():
             from hoap_actions.envs.recording import record
 
