@@ -230,11 +230,16 @@ def train_class(movements, effects, args, covars_prior=None) -> tuple[ClassModel
 
 def pooled_variances(models: list[ClassModel], frames: list[int], reg_covar: float):
     """Within-state variances (D,) pooled over classes, each class weighted by its training frames
-    (its states equally): the spread a piece's states show when they have data enough to show it."""
+    (its states equally): the spread a piece's states show when they have data enough to show it.
+    Full covariances contribute their diagonals (the prior is on variances)."""
     import numpy as np
 
+    def variances(model) -> np.ndarray:
+        covars = model.covars_ if model.covariance_type == "diag" else np.diagonal(model.covars_, axis1=1, axis2=2)
+        return (covars - reg_covar).mean(axis=0)
+
     total = sum(frames)
-    return sum(n / total * (m.model.covars_ - reg_covar).mean(axis=0) for m, n in zip(models, frames))
+    return sum(n / total * variances(m.model) for m, n in zip(models, frames))
 
 
 _WORKER: dict = {}
