@@ -592,6 +592,10 @@ class ParametricHMM:
             k = model.n_states
             mean_bar = np.asarray(arrays["mean_bar_"], dtype=np.float64)
             d = mean_bar.shape[1]
+            try:
+                model._prior_variances(d)
+            except InvalidInputError as exc:
+                raise DataFileError(f"{path}: entry covars_prior is malformed ({exc})") from exc
             w = np.asarray(arrays["W_"], dtype=np.float64)
             cov_shape = (k, d, d) if model.covariance_type == "full" else (k, d)
             learned = {

@@ -318,6 +318,9 @@ def test_load_rejects_bad_files(model, tmp_path):
     np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(3)})
     with pytest.raises(DataFileError, match="format_version 3"):
         ParametricHMM.load(tmp_path / "future.npz")
+    np.savez(tmp_path / "bad_prior.npz", **{**arrays, "covars_prior": np.ones(D + 1)})
+    with pytest.raises(DataFileError, match="covars_prior"):
+        ParametricHMM.load(tmp_path / "bad_prior.npz")
     np.savez(tmp_path / "truncated.npz", **{k: v for k, v in arrays.items() if k != "W_"})
     with pytest.raises(DataFileError, match="W_"):
         ParametricHMM.load(tmp_path / "truncated.npz")
