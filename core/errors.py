@@ -33,3 +33,7 @@ class DataExistsError(HoapActionsError, FileExistsError):
 
 class EnvClosedError(HoapActionsError, RuntimeError):
     """An environment (or its simulator) was used after ``close()``."""
+
+
+class OutputPathError(HoapActionsError, OSError):
+    """An output cannot be written where asked (a folder that cannot be created, no write permission)."""

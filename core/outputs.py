@@ -1,0 +1,236 @@
+"""Exclusive, atomic output files: every writer of datasets, models, reports and videos goes through here.
+
+A long job claims its outputs *before* it starts (so a bad path or an existing file fails in a
+second, not after an hour of recording), writes to a hidden partial beside the target, and
+publishes it in one atomic step at the end:
+
+- the claim is a partial file (or staging folder) ``.<name>.hoap-partial`` holding an exclusive
+  ``flock``: of two concurrent runs aimed at one target, the second gets :class:`DataExistsError`
+  at once; the lock dies with its process, so a killed run never blocks a later one;
+- publishing without ``overwrite`` is ``os.link`` (create-or-fail: a file that appeared meanwhile
+  is never replaced); with ``overwrite`` it is ``os.replace``;
+- a failed or interrupted job removes its partial; partials left by killed processes (their locks
+  are free) are swept by the next claim in the same folder.
+
+POSIX only for the lock (``fcntl``); elsewhere the claim falls back to create-or-fail without
+stale-partial detection.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import logging
+import os
+import shutil
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+from hoap_actions.errors import DataExistsError, InvalidInputError, OutputPathError
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
+
+logger = logging.getLogger(__name__)
+
+PARTIAL_SUFFIX = ".hoap-partial"
+
+__all__ = ["PARTIAL_SUFFIX", "claimed_file", "claimed_files", "check_output_path"]
+
+
+def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
+    """``path`` as a :class:`Path` once it names a file that may be written: not empty, not a folder."""
+    if not str(path).strip():
+        raise InvalidInputError(f"the {what} path is empty; give a file name such as out/{what}.ext")
+    path = Path(path)
+    if path.is_dir():
+        raise InvalidInputError(f"the {what} path {path} is a directory; give a file name inside it")
+    if path.name in ("", ".", ".."):
+        raise InvalidInputError(f"the {what} path {path} does not name a file")
+    return path
+
+
+def _make_folder(folder: Path, what: str) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputPathError(f"cannot create the folder {folder} for the {what}: {exc.strerror or exc}") from exc
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputPathError(f"the folder {folder} for the {what} is not writable")
+
+
+class _Claim:
+    """An open, locked partial (file or folder); :meth:`release` closes it (the lock goes with it)."""
+
+    def __init__(self, partial: Path, folder: bool, what: str) -> None:
+        self.partial = partial
+        self.folder = folder
+        self._fd = self._acquire(partial, folder, what)
+
+    @staticmethod
+    def _open(partial: Path, folder: bool) -> int:
+        if folder:
+            with contextlib.suppress(FileExistsError):
+                partial.mkdir()
+            return os.open(partial, os.O_RDONLY | os.O_DIRECTORY)
+        flags = os.O_RDWR | os.O_CREAT | (0 if fcntl else os.O_EXCL)
+        return os.open(partial, flags, 0o644)
+
+    def _acquire(self, partial: Path, folder: bool, what: str) -> int:
+        busy = DataExistsError(f"another process is writing the {what} {partial.name.removeprefix('.').removesuffix(PARTIAL_SUFFIX)} "
+                               f"in {partial.parent} (its partial {partial.name} is locked); wait for it or choose another path")
+        for _ in range(100):  # retried only when the partial is replaced between open and lock
+            try:
+                fd = self._open(partial, folder)
+            except FileExistsError:
+                raise busy from None
+            except OSError as exc:
+                raise OutputPathError(f"cannot write the {what} in {partial.parent}: {exc.strerror or exc}") from exc
+            if fcntl is None:
+                return fd
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                    raise busy from None
+                raise
+            try:
+                same = os.stat(partial).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                if not folder:
+                    os.ftruncate(fd, 0)  # a stale partial of a killed run: start it afresh
+                return fd
+            os.close(fd)  # the previous owner published or removed it meanwhile: claim anew
+        raise OutputPathError(f"could not claim {partial}: it keeps being replaced")
+
+    def discard(self) -> None:
+        if self.folder:
+            shutil.rmtree(self.partial, ignore_errors=True)
+        else:
+            self.partial.unlink(missing_ok=True)
+
+    def release(self) -> None:
+        os.close(self._fd)
+
+
+def _sweep_stale_partials(folder: Path, keep: Path) -> None:
+    """Remove partials in ``folder`` whose lock is free: what killed runs left behind."""
+    if fcntl is None:
+        return
+    for stale in folder.glob(f".*{PARTIAL_SUFFIX}"):
+        if stale == keep:
+            continue
+        try:
+            fd = os.open(stale, os.O_RDONLY | (os.O_DIRECTORY if stale.is_dir() else 0))
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue  # a live run's partial
+        try:
+            if stale.is_dir():
+                shutil.rmtree(stale, ignore_errors=True)
+            else:
+                stale.unlink(missing_ok=True)
+            logger.info("removed %s, left by an interrupted run", stale)
+        finally:
+            os.close(fd)
+
+
+def _refuse_existing(path: Path, what: str) -> None:
+    raise DataExistsError(f"{path} already exists; pass overwrite=True (--overwrite on the command line) to replace the {what}")
+
+
+def _publish(source: Path, target: Path, overwrite: bool, what: str) -> None:
+    """Move ``source`` to ``target`` atomically; without ``overwrite``, fail if ``target`` exists."""
+    if overwrite:
+        if target.is_dir():
+            raise InvalidInputError(f"{target} is a directory; the {what} cannot replace it")
+        os.replace(source, target)
+        return
+    try:
+        os.link(source, target)
+    except FileExistsError:
+        _refuse_existing(target, what)
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.EXDEV):
+            raise
+        # a file system without hard links: the claim's lock still excludes other hoap-actions writers
+        if target.exists():
+            _refuse_existing(target, what)
+        os.replace(source, target)
+        return
+    source.unlink()
+
+
+@contextlib.contextmanager
+def claimed_file(path: str | os.PathLike, overwrite: bool = False, what: str = "output") -> Iterator[Path]:
+    """Claim ``path`` for a job that writes it: yields the partial to write to, publishes it on success.
+
+    Checks at entry (before any work): the path names a file, its folder can be created and written,
+    the file does not exist (unless ``overwrite``) and no other process is writing it. On an
+    exception the partial is removed and ``path`` is untouched.
+    """
+    path = check_output_path(path, what)
+    _make_folder(path.parent, what)
+    claim = _Claim(path.with_name(f".{path.name}{PARTIAL_SUFFIX}"), folder=False, what=what)
+    try:
+        if path.exists() and not overwrite:
+            _refuse_existing(path, what)
+        _sweep_stale_partials(path.parent, keep=claim.partial)
+        yield claim.partial
+        _publish(claim.partial, path, overwrite, what)
+    finally:
+        claim.discard()
+        claim.release()
+
+
+@contextlib.contextmanager
+def claimed_files(
+    folder: str | os.PathLike, names: Sequence[str], overwrite: bool = False, what: str = "results"
+) -> Iterator[Path]:
+    """Claim the files ``names`` inside ``folder`` (other files there are left alone): yields a
+    staging folder to write them to; all of them are published together on success.
+
+    The same checks as :func:`claimed_file`; a folder this call created is removed again if the job fails.
+    """
+    if not str(folder).strip():
+        raise InvalidInputError(f"the {what} folder path is empty; give a folder such as out/{what}")
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InvalidInputError(f"{folder} exists and is not a directory; the {what} need a folder")
+    created = not folder.exists()
+    _make_folder(folder, what)
+    claim = None
+    published: list[Path] = []
+    try:
+        claim = _Claim(folder / f".{what.replace(' ', '-')}{PARTIAL_SUFFIX}", folder=True, what=what)
+        existing = [name for name in names if (folder / name).exists()]
+        if existing and not overwrite:
+            raise DataExistsError(
+                f"{folder} already holds {what} ({', '.join(existing)}); pass overwrite=True (--overwrite) to replace them"
+            )
+        _sweep_stale_partials(folder, keep=claim.partial)
+        yield claim.partial
+        for name in names:
+            _publish(claim.partial / name, folder / name, overwrite, what)
+            published.append(folder / name)
+    except BaseException:
+        if not overwrite:
+            for path in published:  # all or nothing: take back what this run had published
+                path.unlink(missing_ok=True)
+        raise
+    finally:
+        if claim is not None:
+            claim.discard()
+            claim.release()
+        if created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only succeeds if this run left it empty
