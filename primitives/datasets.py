@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,7 +53,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from hoap_actions.errors import DataExistsError, DataFileError, HoapActionsError, InvalidInputError
+from hoap_actions.errors import DataFileError, HoapActionsError, InvalidInputError
+from hoap_actions.outputs import claimed_file
 
 logger = logging.getLogger(__name__)
 
@@ -188,43 +188,44 @@ def _check_episode(index: int, episode: Episode, n_phases: int) -> None:
 def write_demonstrations(path: Path | str, demos: Demonstrations, overwrite: bool = False) -> Path:
     """Write ``demos`` to the HDF5 file ``path`` (layout in the module docstring); returns the path.
 
-    Raises :class:`DataExistsError` if ``path`` exists and not ``overwrite``, :class:`InvalidInputError`
-    for a malformed episode. The file appears under ``path`` only once completely written.
+    Raises :class:`DataExistsError` if ``path`` exists (unless ``overwrite``) or another process is
+    writing it, :class:`InvalidInputError` for a malformed episode. The file appears under ``path``
+    only once completely written (:func:`hoap_actions.outputs.claimed_file`); a job that produces
+    ``demos`` slowly claims ``path`` first and calls :func:`write_hdf5` on the partial.
     """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise DataExistsError(f"{path} already exists; pass overwrite=True to replace it")
+    with claimed_file(path, overwrite, what="dataset") as partial:
+        write_hdf5(partial, demos)
+    logger.info("wrote %d episodes to %s", len(demos.episodes), path)
+    return Path(path)
+
+
+def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
+    """Check ``demos`` and write them to ``file`` as it is, replacing its contents: for a target
+    already claimed by the caller (use :func:`write_demonstrations` otherwise)."""
     if len(demos.marker_names) != N_MARKERS:
         raise InvalidInputError(f"expected {N_MARKERS} marker names; got {list(demos.marker_names)}")
     if not demos.episodes:
         raise InvalidInputError("there are no episodes to write")
     for index, episode in enumerate(demos.episodes):
         _check_episode(index, episode, len(demos.phase_names))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with h5py.File(tmp, "w", track_order=True) as f:
-            f.attrs.update(
-                format=FORMAT,
-                format_version=FORMAT_VERSION,
-                fps=float(demos.fps),
-                marker_names=list(demos.marker_names),
-                phase_names=list(demos.phase_names),
-                units="m, rad, s",
-                frame=FRAME,
-                rotation_convention=ROTATION_CONVENTION,
-                seed=int(demos.seed),
-                scene=json.dumps(demos.scene, sort_keys=True),
-                generator=json.dumps(demos.generator, sort_keys=True),
-                episodes=len(demos.episodes),
-            )
-            for index, episode in enumerate(demos.episodes):
-                _write_episode(f.create_group(f"episode_{index:05d}"), episode)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    logger.info("wrote %d episodes to %s", len(demos.episodes), path)
-    return path
+    # HDF5 locks files with flock too; the claim already holds this one exclusively
+    with h5py.File(file, "w", track_order=True, locking=False) as f:
+        f.attrs.update(
+            format=FORMAT,
+            format_version=FORMAT_VERSION,
+            fps=float(demos.fps),
+            marker_names=list(demos.marker_names),
+            phase_names=list(demos.phase_names),
+            units="m, rad, s",
+            frame=FRAME,
+            rotation_convention=ROTATION_CONVENTION,
+            seed=int(demos.seed),
+            scene=json.dumps(demos.scene, sort_keys=True),
+            generator=json.dumps(demos.generator, sort_keys=True),
+            episodes=len(demos.episodes),
+        )
+        for index, episode in enumerate(demos.episodes):
+            _write_episode(f.create_group(f"episode_{index:05d}"), episode)
 
 
 def _write_episode(group: h5py.Group, episode: Episode) -> None:

@@ -10,23 +10,20 @@ import os
 from pathlib import Path
 from typing import Any
 
-from hoap_actions.errors import DataExistsError, DataFileError
+from hoap_actions.errors import DataFileError
+from hoap_actions.outputs import claimed_file
 
 
 def write_json_model(path: str | os.PathLike, kind: str, version: int, body: dict[str, Any], overwrite: bool) -> Path:
     """Write ``body`` under ``kind``/``version``; refuse to replace a file unless ``overwrite``.
 
-    The text goes to a temporary file first and is renamed, so an interrupted write never leaves a
-    half-written model under the final name.
+    Written through :func:`hoap_actions.outputs.claimed_file`: an interrupted write never leaves a
+    half-written model under the final name, and of two concurrent writers one gets DataExistsError.
     """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise DataExistsError(f"{path} exists; pass overwrite=True to replace it")
     document = {"format_version": version, "kind": kind, **body}
-    temporary = path.with_name(path.name + ".partial")
-    temporary.write_text(json.dumps(document, indent=1))
-    os.replace(temporary, path)
-    return path
+    with claimed_file(path, overwrite, what=f"{kind} file") as partial:
+        partial.write_text(json.dumps(document, indent=1))
+    return Path(path)
 
 
 def read_json_model(path: str | os.PathLike, kind: str, version: int) -> dict[str, Any]:

@@ -46,12 +46,12 @@ from pathlib import Path
 import numpy as np
 
 from hoap_actions.errors import (
-    DataExistsError,
     DataFileError,
     IdentifiabilityError,
     InvalidInputError,
     NotFittedError,
 )
+from hoap_actions.outputs import claimed_file
 from hoap_actions.primitives.hmm_math import (
     forward_backward_padded,
     log_gaussian_density_padded,
@@ -520,11 +520,10 @@ class ParametricHMM:
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
         """Write the model to exactly ``path`` in the versioned ``.npz`` format documented in this module.
 
-        An existing file raises DataExistsError unless ``overwrite``; the write goes through a
-        temporary file and a rename, so a crash never leaves half a model behind.
+        An existing file raises DataExistsError unless ``overwrite``; the write goes through
+        :func:`hoap_actions.outputs.claimed_file`, so a crash never leaves half a model behind.
         """
         self._check_fitted()
-        path = Path(path)
         seed = self.random_state
         arrays = {
             "format_version": np.array(FORMAT_VERSION),
@@ -547,16 +546,9 @@ class ParametricHMM:
             "log_likelihood_history_": getattr(self, "log_likelihood_history_", np.zeros(0)),
             "converged_": np.array(bool(getattr(self, "monitor_", EMReport((), False, 0)).converged)),
         }
-        if path.exists() and not overwrite:
-            raise DataExistsError(f"{path} already exists; pass overwrite=True to replace it")
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        try:
-            with open(tmp, "wb") as fh:
+        with claimed_file(path, overwrite, what="ParametricHMM file") as partial:
+            with open(partial, "wb") as fh:
                 np.savez(fh, **arrays)
-            os.replace(tmp, path)
-        except OSError as exc:
-            tmp.unlink(missing_ok=True)
-            raise DataFileError(f"could not write model file {path}: {exc}") from exc
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ParametricHMM:
