@@ -44,8 +44,10 @@ from hoap_actions.envs.demonstrator import (
     DemoRecording,
     DemoTask,
 )
-from hoap_actions.errors import DataExistsError, InvalidInputError
-from hoap_actions.primitives.datasets import Demonstrations, Episode, GroundTruth, write_demonstrations
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.outputs import claimed_file
+from hoap_actions.primitives.datasets import Demonstrations, Episode, GroundTruth, write_hdf5
+from hoap_actions.seeds import check_seed
 
 logger = logging.getLogger(__name__)
 
@@ -142,12 +144,22 @@ def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) ->
 
 def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True) -> Path:
     """Record every episode of ``preset`` and write them to the HDF5 file ``out`` (see
-    :mod:`hoap_actions.primitives.datasets`); returns ``out``. Refuses to replace an existing file
-    unless ``overwrite``; the progress bar shows only when stderr is a terminal."""
-    out = Path(out)
-    if out.exists() and not overwrite:
-        raise DataExistsError(f"{out} already exists; pass overwrite=True (--overwrite) to replace it")
+    :mod:`hoap_actions.primitives.datasets`); returns ``out``.
+
+    ``out`` is claimed before the first episode (:func:`hoap_actions.outputs.claimed_file`): a bad
+    path, an existing file (unless ``overwrite``) or another run writing it fails at once, not after
+    the recording. The progress bar shows only when stderr is a terminal.
+    """
+    check_seed(seed)
     tasks = preset_tasks(preset, seed)
+    with claimed_file(out, overwrite, what="dataset") as partial:
+        demos = _record_tasks(preset, tasks, seed, progress)
+        write_hdf5(partial, demos)
+    logger.info("recorded %d episodes (%d frames) of preset %r", len(demos), sum(e.T for e in demos), preset)
+    return Path(out)
+
+
+def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool) -> Demonstrations:
     scene = DemoScene()
     try:
         demonstrator = Demonstrator(scene)
@@ -163,7 +175,7 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
         scene_parameters = scene.parameters()
     finally:
         scene.close()
-    demos = Demonstrations(
+    return Demonstrations(
         episodes=tuple(episodes),
         fps=float(FPS),
         marker_names=MARKER_NAMES,
@@ -181,8 +193,6 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
             "missed_grasp_episodes": missed_grasps,
         },
     )
-    logger.info("recorded %d episodes (%d frames) of preset %r", len(episodes), sum(e.T for e in episodes), preset)
-    return write_demonstrations(out, demos, overwrite=overwrite)
 
 
 def _task_dict(task: DemoTask) -> dict:

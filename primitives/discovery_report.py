@@ -51,7 +51,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import shutil
 import time
 from collections import Counter, defaultdict
 from collections.abc import Sequence
@@ -61,7 +60,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.errors import DataExistsError, InvalidInputError, NotFittedError
+from hoap_actions.errors import InvalidInputError, NotFittedError
+from hoap_actions.outputs import claimed_files
 from hoap_actions.primitives.datasets import Demonstrations, Episode, load_demonstrations
 from hoap_actions.primitives.discovery import APPROACH, MANIPULATION, REMOVE, PrimitiveDiscovery
 from hoap_actions.primitives.evaluation import (
@@ -322,19 +322,24 @@ def discover_to_dir(
 ) -> Summary:
     """Discover primitives in a demonstrations file and write model, classes, grammar and figures to ``out_dir``.
 
-    ``threshold`` / ``spacing`` default to :class:`PrimitiveDiscovery`'s. Refuses (``DataExistsError``)
-    when ``out_dir`` already holds any of :data:`OUTPUT_FILES` unless ``overwrite``; other files there
-    are left alone. Files are written to a temporary folder inside ``out_dir`` and moved into place
-    at the end, so a failure leaves the previous results (or nothing) rather than a mix.
+    ``threshold`` / ``spacing`` default to :class:`PrimitiveDiscovery`'s. The files
+    :data:`OUTPUT_FILES` in ``out_dir`` are claimed before the demonstrations are read
+    (:func:`hoap_actions.outputs.claimed_files`): when any exists (unless ``overwrite``) or another
+    run is writing them, DataExistsError comes at once; other files there are left alone. They are
+    written to a staging folder and published together at the end, so a failure leaves the
+    previous results (or nothing) rather than a mix.
     """
     out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InvalidInputError(f"--out {out_dir} exists and is not a directory")
-    existing = [name for name in OUTPUT_FILES if (out_dir / name).exists()]
-    if existing and not overwrite:
-        raise DataExistsError(
-            f"{out_dir} holds previous results ({', '.join(existing)}); pass overwrite=True (--overwrite)"
-        )
+    with claimed_files(out_dir, OUTPUT_FILES, overwrite, what="discovery results") as staging:
+        summary = _discover(Path(demos_path), out_dir, staging, threshold, spacing)
+    logger.info("discovery of %s written to %s", demos_path, out_dir)
+    return summary
+
+
+def _discover(
+    demos_path: Path, out_dir: Path, staging: Path, threshold: float | None, spacing: float | None
+) -> Summary:
+    """The work of :func:`discover_to_dir`, writing every output file into ``staging``."""
     demos = load_demonstrations(demos_path)
     if len(demos) == 0:
         raise InvalidInputError(f"{demos_path} holds no demonstrations; discovery needs at least one")
@@ -349,56 +354,46 @@ def discover_to_dir(
     grammar = ActionGrammar().fit([[names[pid] for pid, *_ in segments] for segments in model.segmentations_])
     evaluation = evaluate_discovery(model, demos)
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    staging = out_dir / f".discover-{os.getpid()}.tmp"
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
-    try:
-        model.save(staging / "model.json")
-        _write_json(staging / "classes.json", _classes_document(model))
-        grammar.save(staging / "grammar.json")
-        (staging / "grammar.dot").write_text(grammar.to_dot())
-        groups = action_groups(model)
-        colours = _group_colours(model)
-        plot_grammar(grammar, [colours[groups[names.index(s)]] for s in grammar.symbols_], staging / "grammar.png")
-        plot_gaussians(model, model.relative_trajectories(objects), staging / "gaussians.png")
-        plot_primitives_per_action(model, demos, staging / "primitives_per_action.png")
-        summary = Summary(
-            out_dir=out_dir,
-            files=tuple(out_dir / name for name in OUTPUT_FILES),
-            n_demonstrations=len(demos),
-            n_frames=int(sum(e.T for e in demos)),
-            spacing=float(model.spacing),
-            threshold=float(model.threshold),
-            n_joint_states=len(model.joint_means_),
-            n_primitives=len(model.primitives_),
-            n_action_groups=max(groups) + 1,
-            fit_seconds=fit_seconds,
-            evaluation=evaluation,
-        )
-        _write_json(
-            staging / "summary.json",
-            {
-                "format_version": FORMAT_VERSION,
-                "kind": "DiscoverySummary",
-                "demonstrations": str(Path(demos_path).resolve()),
-                "dataset_generator": demos.generator,
-                "params": model.get_params(),
-                "n_demonstrations": summary.n_demonstrations,
-                "n_frames": summary.n_frames,
-                "n_joint_states": summary.n_joint_states,
-                "n_primitives": summary.n_primitives,
-                "n_action_groups": summary.n_action_groups,
-                "fit_seconds": fit_seconds,
-                "evaluation": evaluation,
-                "files": list(OUTPUT_FILES),
-            },
-        )
-        for name in OUTPUT_FILES:
-            os.replace(staging / name, out_dir / name)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    logger.info("discovery of %s written to %s", demos_path, out_dir)
+    model.save(staging / "model.json")
+    _write_json(staging / "classes.json", _classes_document(model))
+    grammar.save(staging / "grammar.json")
+    (staging / "grammar.dot").write_text(grammar.to_dot())
+    groups = action_groups(model)
+    colours = _group_colours(model)
+    plot_grammar(grammar, [colours[groups[names.index(s)]] for s in grammar.symbols_], staging / "grammar.png")
+    plot_gaussians(model, model.relative_trajectories(objects), staging / "gaussians.png")
+    plot_primitives_per_action(model, demos, staging / "primitives_per_action.png")
+    summary = Summary(
+        out_dir=out_dir,
+        files=tuple(out_dir / name for name in OUTPUT_FILES),
+        n_demonstrations=len(demos),
+        n_frames=int(sum(e.T for e in demos)),
+        spacing=float(model.spacing),
+        threshold=float(model.threshold),
+        n_joint_states=len(model.joint_means_),
+        n_primitives=len(model.primitives_),
+        n_action_groups=max(groups) + 1,
+        fit_seconds=fit_seconds,
+        evaluation=evaluation,
+    )
+    _write_json(
+        staging / "summary.json",
+        {
+            "format_version": FORMAT_VERSION,
+            "kind": "DiscoverySummary",
+            "demonstrations": str(Path(demos_path).resolve()),
+            "dataset_generator": demos.generator,
+            "params": model.get_params(),
+            "n_demonstrations": summary.n_demonstrations,
+            "n_frames": summary.n_frames,
+            "n_joint_states": summary.n_joint_states,
+            "n_primitives": summary.n_primitives,
+            "n_action_groups": summary.n_action_groups,
+            "fit_seconds": fit_seconds,
+            "evaluation": evaluation,
+            "files": list(OUTPUT_FILES),
+        },
+    )
     return summary
 
 
