@@ -5,7 +5,13 @@ Importing the package registers the Gymnasium environments listed in :data:`ENV_
 
 from __future__ import annotations
 
-from hoap_actions.envs import ENV_IDS, register_envs
+import warnings
+
+# placo imports hppfcl under its old name, which warns on every run of every command; the message is
+# about placo's packaging, not about anything a user of this package can change.
+warnings.filterwarnings("ignore", message="Please update your 'hppfcl' imports to 'coal'", category=DeprecationWarning)
+
+from hoap_actions.envs import ENV_IDS, register_envs  # noqa: E402  (after the filter)
 
 __version__ = "0.1.0"
 __all__ = ["ENV_IDS", "__version__", "register_envs"]

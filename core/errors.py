@@ -37,3 +37,7 @@ class EnvClosedError(HoapActionsError, RuntimeError):
 
 class OutputPathError(HoapActionsError, OSError):
     """An output cannot be written where asked (a folder that cannot be created, no write permission)."""
+
+
+class ExtrapolationWarning(UserWarning):
+    """A model was asked far outside the range it was trained on; its answer is an unchecked extrapolation."""

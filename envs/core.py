@@ -19,7 +19,7 @@ from gymnasium import spaces
 from hoap_actions.envs.controls import CONTROL_MODES, make_controller
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
-from hoap_actions.envs.sim import Sim
+from hoap_actions.envs.sim import Sim, check_image_size
 from hoap_actions.envs.tasks.base import Task
 from hoap_actions.errors import EnvClosedError, InvalidInputError
 
@@ -38,8 +38,13 @@ class HoapEnv(gymnasium.Env):
         own part (see the task's docstring).
       - ``"achieved_goal"`` / ``"desired_goal"``: the task's goal vectors (m), as in goal-based envs.
 
+    Actions: a Box in [-1, 1] (see the control mode); values outside it are clipped to it, as
+    Gymnasium's bounded Box actions are, and ``info["action_clipped"]`` says so on that step.
+
     ``info["is_success"]`` is set on reset and on every step. The episode terminates on success or
     when the robot falls; the time limit is applied by Gymnasium's ``TimeLimit`` on registration.
+    ``render_mode="human"`` opens PyBullet's window; without a display it raises
+    :class:`~hoap_actions.errors.DisplayUnavailableError`.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": int(round(240 / PHYSICS_STEPS_PER_ACTION))}
@@ -64,6 +69,7 @@ class HoapEnv(gymnasium.Env):
             raise InvalidInputError(f"control_mode={control_mode!r} is not supported; accepted: {list(CONTROL_MODES)}")
         if reward_type not in ("sparse", "dense"):
             raise InvalidInputError(f"reward_type={reward_type!r} is not supported; accepted: 'sparse', 'dense'")
+        check_image_size(render_width, render_height, what="render")
         self.render_mode = render_mode
         self.control_mode = control_mode
         self.reward_type = reward_type
@@ -76,7 +82,7 @@ class HoapEnv(gymnasium.Env):
                     f"camera={camera!r} is not a camera of this scene; accepted: {sorted(self.sim.cameras)}"
                 )
             self.camera = camera
-            self._render_camera = replace(self.sim.cameras[camera], width=int(render_width), height=int(render_height))
+            self._render_camera = replace(self.sim.cameras[camera], width=render_width, height=render_height)
             self.task = self.task_cls(self.sim, self.robot, self.scene, **task_kwargs)
             self.controller = make_controller(control_mode, self.robot)
             self.robot.reset()
@@ -105,7 +111,7 @@ class HoapEnv(gymnasium.Env):
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self.sim.closed:
             raise EnvClosedError("step() called on a closed environment; create a new one with gymnasium.make")
-        action = self._checked_action(action)
+        action, action_clipped = self._checked_action(action)
         self.controller.apply(action)
         tick = getattr(self.controller, "tick", None)
         if tick is None:
@@ -115,7 +121,7 @@ class HoapEnv(gymnasium.Env):
                 tick()
                 self.sim.step(1)
         obs = self._observation()
-        info = self._info()
+        info = self._info(action_clipped)
         reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info))
         terminated = bool(info["is_success"] or info["fallen"])
         return obs, reward, terminated, False, info
@@ -145,17 +151,20 @@ class HoapEnv(gymnasium.Env):
             env_params = list(inspect.signature(HoapEnv.__init__).parameters)[1:-1]
             raise TypeError(f"{cls.__name__} got unknown keyword argument(s) {unknown}; accepted: {env_params + task_params}")
 
-    def _checked_action(self, action: Any) -> np.ndarray:
-        array = np.asarray(action, dtype=np.float64)
+    def _checked_action(self, action: Any) -> tuple[np.ndarray, bool]:
+        """The action as float64 clipped to the Box, and whether clipping changed it."""
         expected = self.action_space.shape
+        accepted = f"this env ({self.control_mode}) expects an array of {expected[0]} finite numbers in [-1, 1]"
+        try:
+            array = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"action {action!r} ({type(action).__name__}) is not numeric; {accepted}") from None
         if array.shape != expected:
-            raise InvalidInputError(
-                f"action has shape {array.shape}; this env ({self.control_mode}) expects shape {expected} in [-1, 1]"
-            )
+            raise InvalidInputError(f"action has shape {array.shape}; {accepted}")
         if not np.all(np.isfinite(array)):
-            raise InvalidInputError(f"action contains NaN or inf: {array}; expected finite values in [-1, 1]")
-        # Gymnasium convention: a bounded Box action is clipped to its bounds.
-        return np.clip(array, self.action_space.low, self.action_space.high)
+            raise InvalidInputError(f"action contains NaN or inf: {array}; {accepted}")
+        clipped = np.clip(array, self.action_space.low, self.action_space.high)
+        return clipped, bool(np.any(clipped != array))
 
     def _observation(self) -> dict[str, np.ndarray]:
         q, qd = self.robot.joint_positions(), self.robot.joint_velocities()
@@ -168,9 +177,10 @@ class HoapEnv(gymnasium.Env):
             "desired_goal": self.task.desired_goal().astype(np.float32),
         }
 
-    def _info(self) -> dict[str, Any]:
+    def _info(self, action_clipped: bool = False) -> dict[str, Any]:
         return {
             "is_success": bool(self.task.is_success()),
             "fallen": bool(self.robot.has_fallen()),
             "target_clipped": bool(self.controller.last_clipped),
+            "action_clipped": action_clipped,
         }

@@ -6,26 +6,101 @@ one process are independent. Quaternions are ``(x, y, z, w)`` as PyBullet gives 
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
 import logging
+import os
+import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pybullet
-from pybullet_utils.bullet_client import BulletClient
 
-from hoap_actions.errors import EnvClosedError, InvalidInputError
+from hoap_actions.errors import DisplayUnavailableError, EnvClosedError, InvalidInputError
 from hoap_actions.urdf import urdf_path
+
+
+@contextlib.contextmanager
+def _c_stderr_silenced() -> Iterator[None]:
+    """Send what C code writes to file descriptor 2 to /dev/null meanwhile (Python's own errors still raise)."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no usable stderr: nothing to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+with _c_stderr_silenced():  # PyBullet's C module prints its build time when imported
+    import pybullet
+from pybullet_utils.bullet_client import BulletClient  # noqa: E402
 
 logger = logging.getLogger(__name__)
 
 TIMESTEP = 1.0 / 240.0  # PyBullet's default rate; the controllers tick at this rate
+MAX_IMAGE_SIDE = 4096  # px, largest camera width or height: TinyRenderer allocates the whole frame up front
+
+
+def check_image_size(width: object, height: object, what: str = "camera") -> None:
+    """Image sides must be whole pixels in 1..:data:`MAX_IMAGE_SIDE` (PyBullet aborts the process on
+    negative sizes and runs out of memory on huge ones)."""
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_IMAGE_SIDE:
+            raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got {value!r}")
+
+
+def check_display() -> None:
+    """Raise :class:`DisplayUnavailableError` unless PyBullet's GUI can open a window here.
+
+    On Linux PyBullet's GUI ends the whole process (exit 1, no exception) when it cannot reach an X
+    server or the server has no OpenGL (GLX); so ask the X server first, through Xlib. Other platforms
+    open native windows and are not checked.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    hint = "use render_mode='rgb_array' (headless), or run under a virtual X server (xvfb-run)"
+    name = os.environ.get("DISPLAY")
+    if not name:
+        raise DisplayUnavailableError(f"render_mode='human' needs a display, but DISPLAY is not set; {hint}")
+    library = ctypes.util.find_library("X11")
+    if library is None:
+        raise DisplayUnavailableError(f"render_mode='human' needs the X11 library (libX11), which is not installed; {hint}")
+    xlib = ctypes.CDLL(library)
+    xlib.XOpenDisplay.restype = ctypes.c_void_p
+    xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    xlib.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p] + [ctypes.POINTER(ctypes.c_int)] * 3
+    xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    display = xlib.XOpenDisplay(name.encode())
+    if not display:
+        raise DisplayUnavailableError(f"render_mode='human' cannot open the X display DISPLAY={name!r}; {hint}")
+    try:
+        codes = [ctypes.c_int() for _ in range(3)]
+        has_glx = xlib.XQueryExtension(display, b"GLX", *(ctypes.byref(c) for c in codes))
+    finally:
+        xlib.XCloseDisplay(display)
+    if not has_glx:
+        raise DisplayUnavailableError(f"the X display {name!r} has no OpenGL (GLX extension), which PyBullet's GUI needs; {hint}")
 
 
 class _Client(BulletClient):
     """A :class:`BulletClient` that builds each bound PyBullet function once: the stock one wraps the
     function anew on every call (an ``inspect`` check and a ``functools.partial``, ~3 us, some 50 times
-    an env step)."""
+    an env step). It connects without an options string, which makes PyBullet print ``argv[0]=`` on
+    stdout."""
+
+    def __init__(self, connection_mode: int) -> None:  # noqa: D107 - BulletClient's attributes, no options
+        self._shapes: dict = {}
+        self._pid = os.getpid()
+        self._client = pybullet.connect(connection_mode)
 
     def __getattr__(self, name: str):
         attribute = super().__getattr__(name)
@@ -59,6 +134,18 @@ class Camera:
     far: float = 3.0
     width: int = 320
     height: int = 240
+
+    def __post_init__(self) -> None:
+        check_image_size(self.width, self.height)
+        eye, target, up = (np.asarray(v, float) for v in (self.eye, self.target, self.up))
+        if any(v.shape != (3,) or not np.all(np.isfinite(v)) for v in (eye, target, up)):
+            raise InvalidInputError("camera eye, target and up must be finite 3-vectors (m)")
+        if np.linalg.norm(target - eye) < 1e-9 or np.linalg.norm(np.cross(target - eye, up)) < 1e-9:
+            raise InvalidInputError("camera eye and target must differ, and up must not be parallel to the view direction")
+        if not 0.0 < self.fov_deg < 180.0:
+            raise InvalidInputError(f"camera fov_deg must be in (0, 180) degrees; got {self.fov_deg!r}")
+        if not 0.0 < self.near < self.far < np.inf:
+            raise InvalidInputError(f"camera needs 0 < near < far (m); got near={self.near!r}, far={self.far!r}")
 
     def view_matrix(self) -> np.ndarray:
         """4x4 world-to-camera matrix (OpenGL convention, camera looks down its -z)."""
@@ -110,11 +197,21 @@ class Sim:
     """A PyBullet world: load bodies under names, step, save/restore state, render cameras.
 
     ``gui=True`` opens PyBullet's window (render_mode ``"human"``); otherwise the server is
-    ``DIRECT`` and images come from the headless TinyRenderer.
+    ``DIRECT`` and images come from the headless TinyRenderer. PyBullet allows one window per
+    process; without a display, or for a second window, ``gui=True`` raises
+    :class:`~hoap_actions.errors.DisplayUnavailableError` (PyBullet itself would end the process).
     """
 
     def __init__(self, gui: bool = False, timestep: float = TIMESTEP, shadows: bool = False) -> None:
-        self._client = _Client(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        if gui:
+            check_display()
+        try:
+            self._client = _Client(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        except pybullet.error as exc:  # e.g. a second GUI in this process
+            raise DisplayUnavailableError(
+                f"PyBullet could not open its {'GUI' if gui else 'DIRECT'} server: {exc}"
+                + (" Close the other render_mode='human' environment first, or use render_mode='rgb_array'." if gui else "")
+            ) from None
         self.timestep = float(timestep)
         self.shadows = shadows
         self.gui = gui
