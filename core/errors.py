@@ -39,5 +39,9 @@ class OutputPathError(HoapActionsError, OSError):
     """An output cannot be written where asked (a folder that cannot be created, no write permission)."""
 
 
+class DisplayUnavailableError(HoapActionsError, RuntimeError):
+    """``render_mode="human"`` cannot open a window here (no display, no OpenGL, or one is open already)."""
+
+
 class ExtrapolationWarning(UserWarning):
     """A model was asked far outside the range it was trained on; its answer is an unchecked extrapolation."""
