@@ -27,10 +27,15 @@ transmat_                (K, K)               transition matrix (rows sum to 1)
 mean_bar_                (K, D)               state means at phi = 0
 W_                       (K, D, p)            effect-to-mean matrices
 covars_                  (K, D, D) or (K, D)  covariances ("full") or variances ("diag")
-train_params_            (S, p)               effects of the training sequences (restarts of estimate_params)
+train_params_            (S, p), S >= 1       effects of the training sequences (restarts of estimate_params;
+                                              synthesize warns far outside their range)
 log_likelihood_history_  (I,)                 training log-likelihood per EM iteration
 converged_               () bool              whether training stopped on ``tol``
 =======================  ===================  ===============================================================
+
+:meth:`ParametricHMM.load` checks meaning as well as shapes: ``startprob_`` and every row of
+``transmat_`` are probability distributions, a left-right chain starts in state 0 and only stays or
+moves right (by one state, or two with skips), and covariances are symmetric positive definite.
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import warnings
 import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -47,6 +53,7 @@ import numpy as np
 
 from hoap_actions.errors import (
     DataFileError,
+    ExtrapolationWarning,
     IdentifiabilityError,
     InvalidInputError,
     NotFittedError,
@@ -74,6 +81,20 @@ _TOPOLOGIES = ("left-right", "left-right-skip", "ergodic")
 # starts with, so skips must start non-zero; the training data then decide how often they are taken.
 _SKIP_SHARE = 1.0 / 3.0
 _COVARIANCE_TYPES = ("full", "diag")
+# Loading: how a file is recognised, and how far saved values may be from what EM produces.
+_ZIP_SIGNATURES = (b"PK\x03\x04", b"PK\x05\x06")  # an .npz archive is a zip file (with members / empty)
+_OTHER_SIGNATURES = (
+    (b"\x89HDF\r\n\x1a\n", "an HDF5 file (such as a demonstrations dataset)"),
+    (b"\x93NUMPY", "a single .npy array, not an .npz archive"),
+)
+_SNIFF_BYTES = 16
+_ACCEPTED_FILES = "ParametricHMM.load reads the .npz archives written by ParametricHMM.save"
+_PROBABILITY_TOLERANCE = 1e-6  # |sum - 1| of a saved distribution; EM's normalisation errs by ~1e-16
+_SYMMETRY_TOLERANCE = 1e-8  # largest |S - S^T| relative to the largest |S| (EM's covariances are exactly symmetric)
+# synthesize warns (ExtrapolationWarning) when a component of phi lies beyond the training effects'
+# range widened by this fraction of its span at each end: the linear mean model is only checked
+# against data inside the range, and a little beyond it is routine (a grid's edge, a held-out effect).
+EXTRAPOLATION_MARGIN = 0.5
 # Relative ridge on the effect block of each state's regression: only matters when a state's
 # weighted effects are degenerate (possible in ergodic models), and then picks the small-norm W.
 _RIDGE = 1e-10
@@ -488,11 +509,16 @@ class ParametricHMM:
         visit probability ``v_j`` is 1 without skips) after mean ``j``, so
         ``T = round(sum_{j<K-1} v_j / (1 - a_jj)) + 1``; with ``n_frames`` the same path is resampled
         to that many frames.  Left-right models (with or without skips) only.
+
+        A phi far outside the training effects (a component beyond their range widened by
+        :data:`EXTRAPOLATION_MARGIN` of its span at either end) warns with :class:`ExtrapolationWarning`:
+        the movement is then an extrapolation of the linear mean model that no demonstration supports.
         """
         self._check_fitted()
         if not self._left_right:
             raise InvalidInputError("synthesize needs a left-right model (topology='left-right'); this one is ergodic")
         phi = self._check_phi(phi)
+        self._warn_if_extrapolating(phi)
         if n_frames is not None and (not _is_int(n_frames) or n_frames < 1):
             raise InvalidInputError(f"n_frames must be None or an int >= 1; got {n_frames!r}")
         means = self.mean_bar_ + self.W_ @ phi                                   # (K, D)
@@ -504,6 +530,17 @@ class ParametricHMM:
         if means.shape[0] == 1:
             return np.repeat(means, int(n_frames), axis=0)
         return np.stack([np.interp(times, anchors, means[:, i]) for i in range(means.shape[1])], axis=1)
+
+    def _warn_if_extrapolating(self, phi: np.ndarray) -> None:
+        """Warn (for the caller of the public method) if a component of ``phi`` is far outside the training range."""
+        low, high = self.train_params_.min(axis=0), self.train_params_.max(axis=0)
+        margin = EXTRAPOLATION_MARGIN * (high - low)
+        far = np.flatnonzero((phi < low - margin) | (phi > high + margin))
+        if far.size:
+            ranges = "; ".join(f"phi[{i}] = {phi[i]:.4g}, trained on [{low[i]:.4g}, {high[i]:.4g}]" for i in far)
+            warnings.warn(f"phi is far outside the training effects ({ranges}): beyond each range widened by "
+                          f"{EXTRAPOLATION_MARGIN:g} of its span at either end, the synthesised movement is an "
+                          "unchecked extrapolation of the linear mean model", ExtrapolationWarning, stacklevel=3)
 
     def _visit_probabilities(self) -> np.ndarray:
         """Probability that a left-right chain passes through each state (1 for all without skips)."""
@@ -552,24 +589,23 @@ class ParametricHMM:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ParametricHMM:
-        """Read a model written by :meth:`save`; a missing, corrupt or other-version file raises DataFileError."""
+        """Read a model written by :meth:`save`, checked for meaning as well as shape.
+
+        A missing, corrupt, other-kind or other-version file raises DataFileError, and so does one
+        whose learned values a trained model cannot have (probabilities that do not sum to 1,
+        covariances that are not positive definite, ...): they would load and then fail far away.
+        """
         path = Path(path)
         if not path.is_file():
             raise DataFileError(f"model file {path} does not exist")
-        try:
-            loaded = np.load(path, allow_pickle=False)
-            if not isinstance(loaded, np.lib.npyio.NpzFile):
-                raise ValueError("it holds a single array, not an .npz archive")
-            with loaded as data:
-                arrays = {key: data[key] for key in data.files}
-        except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
-            raise DataFileError(f"{path} is not a readable ParametricHMM .npz file: {exc}") from exc
-        version = arrays.get("format_version")
-        if version is None or version.shape != () or str(arrays.get("kind", "")) != "ParametricHMM":
-            raise DataFileError(f"{path} is not a ParametricHMM file (no format_version/kind entries)")
-        if int(version) not in _READABLE_VERSIONS:
-            raise DataFileError(f"{path} has format_version {int(version)}; this version of hoap_actions reads "
-                                f"format_versions {_READABLE_VERSIONS}")
+        arrays = _read_npz(path)
+        kind, version = arrays.get("kind"), arrays.get("format_version")
+        if kind is None or version is None or kind.shape != () or str(kind) != "ParametricHMM":
+            raise DataFileError(f"{path} is not a ParametricHMM file (no format_version/kind entries); "
+                                f"{_ACCEPTED_FILES}")
+        if version.shape != () or version.dtype.kind not in "iu" or int(version) not in _READABLE_VERSIONS:
+            raise DataFileError(f"{path} has format_version {version.tolist()!r}; this version of hoap_actions "
+                                f"reads format_versions {_READABLE_VERSIONS}")
         try:
             seed = arrays["random_state"]
             model = cls(n_states=int(arrays["n_states"]), topology=str(arrays["topology"]),
@@ -582,40 +618,136 @@ class ParametricHMM:
                 model.covars_weight = float(arrays["covars_weight"])
             model._check_hyper_parameters()
             k = model.n_states
-            mean_bar = np.asarray(arrays["mean_bar_"], dtype=np.float64)
-            d = mean_bar.shape[1]
+            mean_bar = _entry(arrays, "mean_bar_", 2, path)
+            w = _entry(arrays, "W_", 3, path)
+            train = _entry(arrays, "train_params_", 2, path)
+            d, p = mean_bar.shape[1], w.shape[2]
             try:
                 model._prior_variances(d)
             except InvalidInputError as exc:
                 raise DataFileError(f"{path}: entry covars_prior is malformed ({exc})") from exc
-            w = np.asarray(arrays["W_"], dtype=np.float64)
             cov_shape = (k, d, d) if model.covariance_type == "full" else (k, d)
             learned = {
-                "startprob_": (arrays["startprob_"], (k,)),
-                "transmat_": (arrays["transmat_"], (k, k)),
+                "startprob_": (_entry(arrays, "startprob_", 1, path), (k,)),
+                "transmat_": (_entry(arrays, "transmat_", 2, path), (k, k)),
                 "mean_bar_": (mean_bar, (k, d)),
-                "W_": (w, (k, d, w.shape[-1])),
-                "covars_": (arrays["covars_"], cov_shape),
-                "train_params_": (arrays["train_params_"], (arrays["train_params_"].shape[0], w.shape[-1])),
+                "W_": (w, (k, d, p)),
+                "covars_": (_entry(arrays, "covars_", len(cov_shape), path), cov_shape),
+                "train_params_": (train, (train.shape[0], p)),
             }
             for name, (value, shape) in learned.items():
-                value = np.asarray(value, dtype=np.float64)
                 if value.shape != shape or not np.all(np.isfinite(value)):
                     raise DataFileError(f"{path}: entry {name} has shape {value.shape}, expected {shape} and finite")
                 setattr(model, name, value)
-            precision_cholesky(model.covars_, model.covariance_type)
-            history = np.asarray(arrays["log_likelihood_history_"], dtype=np.float64)
+            model._check_learned_meaning(path)
+            history = _entry(arrays, "log_likelihood_history_", 1, path)
             converged = bool(arrays["converged_"])
-        except (KeyError, IndexError, TypeError, ValueError) as exc:
+        except KeyError as exc:
+            raise DataFileError(f"{path}: entry {exc} is missing; {_ACCEPTED_FILES}") from exc
+        except (IndexError, TypeError, ValueError) as exc:
             raise DataFileError(f"{path}: missing or malformed entry ({exc})") from exc
         model.n_features_in_ = d
-        model.n_params_ = w.shape[-1]
+        model.n_params_ = p
         model.log_likelihood_history_ = history
         model.monitor_ = EMReport(tuple(history.tolist()), converged, history.size)
         return model
 
+    def _check_learned_meaning(self, path: Path) -> None:
+        """Raise DataFileError naming ``path`` and the entry if the learned values are not a valid HMM.
+
+        Shapes and finiteness are checked already; this checks what EM always produces: probability
+        distributions, symmetric positive definite covariances, and the transitions the topology allows.
+        """
+        def bad(name: str, problem: str, accepted: str) -> DataFileError:
+            return DataFileError(f"{path}: entry {name} {problem}; accepted: {accepted}")
+
+        if self.train_params_.shape[0] == 0:
+            raise bad("train_params_", "is empty", "the (S, p) effects of the S >= 1 training sequences")
+        start, trans = self.startprob_, self.transmat_
+        if np.any(start < 0) or abs(start.sum() - 1.0) > _PROBABILITY_TOLERANCE:
+            raise bad("startprob_", f"is not a probability distribution (sum {start.sum():.6g}, smallest "
+                      f"{start.min():.6g})", f"non-negative values summing to 1 (within {_PROBABILITY_TOLERANCE})")
+        row_sums = trans.sum(axis=1)
+        wrong = np.flatnonzero(np.any(trans < 0, axis=1) | (np.abs(row_sums - 1.0) > _PROBABILITY_TOLERANCE))
+        if wrong.size:
+            i = int(wrong[0])
+            raise bad("transmat_", f"row {i} is not a probability distribution (sum {row_sums[i]:.6g}, smallest "
+                      f"{trans[i].min():.6g}; {wrong.size} bad row(s))",
+                      f"non-negative rows each summing to 1 (within {_PROBABILITY_TOLERANCE})")
+        if self._left_right:
+            reach = 2 if self.topology == "left-right-skip" else 1
+            offsets = np.subtract.outer(np.arange(self.n_states), np.arange(self.n_states))  # i - j
+            if start[0] < 1.0 - _PROBABILITY_TOLERANCE or np.any(trans[(offsets > 0) | (offsets < -reach)] != 0):
+                raise bad("transmat_/startprob_", f"break the {self.topology} chain",
+                          f"a chain that starts in state 0 and only stays or moves right by at most {reach} "
+                          f"state(s), as training a {self.topology} model gives")
+        covars = self.covars_
+        if self.covariance_type == "full":
+            asymmetry = np.abs(covars - covars.transpose(0, 2, 1)).max()
+            if asymmetry > _SYMMETRY_TOLERANCE * max(np.abs(covars).max(), 1.0):
+                raise bad("covars_", f"holds a non-symmetric matrix (largest asymmetry {asymmetry:.3g})",
+                          "symmetric positive definite covariance matrices")
+        try:
+            precision_cholesky(covars, self.covariance_type)
+        except InvalidInputError as exc:
+            raise bad("covars_", "holds a covariance that is not positive definite",
+                      "symmetric positive definite covariance matrices ('full') or variances > 0 ('diag')") from exc
+
 
 # ------------------------------------------------------------------------------------- helpers
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every entry of the ``.npz`` archive ``path`` as an array, never unpickling anything.
+
+    Other files are told apart by their first bytes first, so the error says what the file looks
+    like instead of numpy's guess that it might be pickled data.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(_SNIFF_BYTES)
+    except OSError as exc:
+        raise DataFileError(f"could not read model file {path}: {exc}") from exc
+    if not head.startswith(_ZIP_SIGNATURES):
+        raise DataFileError(f"{path} is not a ParametricHMM file: it looks like {_describe_file(head)}; "
+                            f"{_ACCEPTED_FILES}")
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            for key in data.files:
+                try:
+                    arrays[key] = np.asarray(data[key])
+                except ValueError as exc:  # an object array: numpy would need to unpickle it
+                    raise DataFileError(f"{path}: entry {key} holds Python objects, not a plain numeric or text "
+                                        f"array; {_ACCEPTED_FILES}, whose entries never hold objects") from exc
+    except DataFileError:
+        raise
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+        raise DataFileError(f"{path} is not a readable ParametricHMM .npz file (truncated or corrupt?): {exc}") from exc
+    return arrays
+
+
+def _describe_file(head: bytes) -> str:
+    """What a file that is not a zip archive looks like, from its first bytes."""
+    if not head:
+        return "an empty file"
+    for signature, description in _OTHER_SIGNATURES:
+        if head.startswith(signature):
+            return description
+    if head.lstrip()[:1] in (b"{", b"["):
+        return "a JSON document (such as a PrimitiveDiscovery or ActionGrammar model)"
+    return f"no format hoap_actions writes (it starts with {head!r})"
+
+
+def _entry(arrays: Mapping[str, np.ndarray], name: str, ndim: int, path: Path) -> np.ndarray:
+    """The learned array ``name`` as float64 with ``ndim`` axes, or a DataFileError naming it."""
+    if name not in arrays:
+        raise DataFileError(f"{path}: entry {name} is missing; {_ACCEPTED_FILES}")
+    value = arrays[name]
+    if value.dtype.kind not in "biuf" or value.ndim != ndim:
+        raise DataFileError(f"{path}: entry {name} is a {value.ndim}-D {value.dtype} array; accepted: a "
+                            f"{ndim}-D numeric array")
+    return value.astype(np.float64)
+
+
 def _is_int(value) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
