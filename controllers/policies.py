@@ -8,6 +8,7 @@ import gymnasium
 import numpy as np
 
 from hoap_actions.controllers.scripted_expert import ScriptedExpert
+from hoap_actions.envs import ENV_IDS
 from hoap_actions.errors import InvalidInputError
 
 
@@ -16,6 +17,7 @@ class RandomPolicy:
 
     failure: str | None = None
     control_mode = "joint_delta"
+    env_ids = ENV_IDS  # any of the package's envs
 
     def __init__(self, env: gymnasium.Env, seed: int = 0) -> None:
         self.action_space = env.action_space
@@ -28,12 +30,16 @@ class RandomPolicy:
         return self.action_space.sample()
 
 
-POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert}  # scripted: PegInsert with control_mode="ee_delta"
+POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert}
+"""Policies by name; each has ``control_mode`` (the env's) and ``env_ids`` (the envs it can act in)."""
 
 
-def policy_class(name: str) -> type:
-    """The policy class called ``name`` (one of :data:`POLICIES`); its ``control_mode`` is the env's."""
+def policy_class(name: str, env_id: str | None = None) -> type:
+    """The policy class called ``name`` (one of :data:`POLICIES`), checked against ``env_id`` if given."""
     try:
-        return POLICIES[name]
+        policy = POLICIES[name]
     except KeyError:
         raise InvalidInputError(f"unknown policy {name!r}; accepted: {sorted(POLICIES)}") from None
+    if env_id is not None and env_id not in policy.env_ids:
+        raise InvalidInputError(f"the {name} policy does not act in {env_id}; it acts in {list(policy.env_ids)}")
+    return policy

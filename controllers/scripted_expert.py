@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.envs.controls import HAND_BOX_HIGH, HAND_BOX_LOW, MAX_HAND_STEP, EEDeltaController
+from hoap_actions.envs.tasks.peg_insert import PegInsertTask
 from hoap_actions.errors import InvalidInputError
 
 __all__ = ["ScriptedExpert", "footprint_clearance", "thumb_outline"]
@@ -144,9 +145,14 @@ class ScriptedExpert:
 
     failure: str | None
     control_mode = "ee_delta"  # the env's control mode this policy acts through
+    env_ids = ("hoap_actions/PegInsert-v0",)  # the envs whose task it performs
 
     def __init__(self, env: gymnasium.Env) -> None:
         base = env.unwrapped
+        if not isinstance(getattr(base, "task", None), PegInsertTask):
+            raise InvalidInputError(
+                f"ScriptedExpert performs grasp-and-insert; it needs one of {list(self.env_ids)}, not {type(base).__name__}"
+            )
         if not isinstance(getattr(base, "controller", None), EEDeltaController):
             raise InvalidInputError(
                 f"ScriptedExpert needs control_mode='ee_delta'; this env uses {getattr(base, 'control_mode', None)!r}"

@@ -1,34 +1,94 @@
-"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives."""
+"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives.
+
+Every argument and output path is checked before the long work starts; a mistake is one line on
+stderr and exit status 2, with no traceback. Outputs are claimed at the start
+(:mod:`hoap_actions.outputs`) and appear only when complete; an interrupted run (Ctrl-C, SIGTERM)
+leaves none of its partial files behind.
+"""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
+import signal
 import sys
+import threading
 from pathlib import Path
+from typing import NoReturn
 
+from hoap_actions import ENV_IDS, __version__
 from hoap_actions.episodes import run_episodes, summarise
-from hoap_actions.errors import HoapActionsError
+from hoap_actions.errors import HoapActionsError, InvalidInputError
+from hoap_actions.outputs import claimed_file
+from hoap_actions.seeds import MAX_SEED
+
+EXIT_USAGE = 2  # a user's mistake or a bad file, as argparse uses it
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (the usage text is one ``--help`` away)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def _positive_int(text: str) -> int:
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def _seed(text: str) -> int:
+    value = _integer(text)
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"a seed is an integer in 0..{MAX_SEED}, got {text}")
+    return value
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+
+
+def _path(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path; give a file or folder name")
+    return Path(text)
 
 
 def _demo(args: argparse.Namespace) -> int:
     from hoap_actions.controllers.policies import policy_class
 
-    policy = policy_class(args.policy)
-    results = run_episodes(
-        env_id=args.env,
-        policy_factory=policy,
-        episodes=args.episodes,
-        seed=args.seed,
-        video=args.video,
-        snapshot=args.snapshot,
-        env_kwargs={"control_mode": policy.control_mode},  # the scripted expert acts through ee_delta
-    )
-    summary = summarise(results)
+    policy = policy_class(args.policy, args.env)
+    last_seed = args.seed + args.episodes - 1
+    if last_seed > MAX_SEED:
+        raise InvalidInputError(f"seeds {args.seed}..{last_seed} run past the largest seed {MAX_SEED}; lower --seed or --episodes")
+    with contextlib.ExitStack() as outputs:  # claimed before the first episode, published at the end
+        claim = {
+            name: outputs.enter_context(claimed_file(path, args.overwrite, what=name)) if path else None
+            for name, path in (("video", args.video), ("snapshot", args.snapshot), ("report", args.json))
+        }
+        results = run_episodes(
+            env_id=args.env,
+            policy_factory=policy,
+            episodes=args.episodes,
+            seed=args.seed,
+            video=claim["video"],
+            snapshot=claim["snapshot"],
+            env_kwargs={"control_mode": policy.control_mode},  # the scripted expert acts through ee_delta
+        )
+        summary = summarise(results)
+        if claim["report"]:
+            claim["report"].write_text(json.dumps(summary, indent=2) + "\n")
     print(
         f"{args.policy} policy on {args.env}: success rate {summary['success_rate']:.1%} "
-        f"over {len(results)} episodes (seeds {args.seed}..{args.seed + args.episodes - 1}), falls: {summary['falls']}"
+        f"over {len(results)} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}"
     )
     for reason, count in summary["reasons"].items():
         print(f"  {reason}: {count}")
@@ -37,8 +97,6 @@ def _demo(args: argparse.Namespace) -> int:
     if args.snapshot:
         print(f"scene snapshot: {args.snapshot}")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(summary, indent=2) + "\n")
         print(f"results: {args.json}")
     return 0
 
@@ -62,30 +120,34 @@ def _discover(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hoap-actions", description=__doc__)
+    parser = _Parser(prog="hoap-actions", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="run a policy for N episodes and report its success rate")
-    demo.add_argument("--policy", default="random", help="policy name (default: random)")
-    demo.add_argument("--env", default="hoap_actions/PegInsert-v0", help="environment id")
-    demo.add_argument("--episodes", type=int, default=10)
-    demo.add_argument("--seed", type=int, default=0, help="layouts are drawn from seeds S, S+1, ...")
-    demo.add_argument("--video", type=Path, help="write an mp4 of the first episode here")
-    demo.add_argument("--snapshot", type=Path, help="write a PNG of the first episode's scene here")
-    demo.add_argument("--json", type=Path, help="write per-episode results here")
+    demo.add_argument("--policy", default="random", choices=["random", "scripted"],
+                      help="random: any env, joint_delta; scripted: the grasp-and-insert expert, PegInsert-v0 only, "
+                           "ee_delta (default: random)")
+    demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
+    demo.add_argument("--episodes", type=_positive_int, default=10)
+    demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
+    demo.add_argument("--video", type=_path, help="write an mp4 of the first episode here")
+    demo.add_argument("--snapshot", type=_path, help="write a PNG of the first episode's scene here")
+    demo.add_argument("--json", type=_path, help="write per-episode results here")
+    demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
     demo.set_defaults(func=_demo)
 
     rec = sub.add_parser("record", help="record simulated human demonstrations to an HDF5 dataset")
     rec.add_argument("--preset", required=True, choices=["paper", "approach-grid", "small"])
-    rec.add_argument("--out", type=Path, required=True, help="dataset file to write (.h5)")
-    rec.add_argument("--seed", type=int, default=0)
+    rec.add_argument("--out", type=_path, required=True, help="dataset file to write (.h5)")
+    rec.add_argument("--seed", type=_seed, default=0)
     rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
     rec.set_defaults(func=_record)
 
     disc = sub.add_parser("discover", help="discover action primitives in recorded demonstrations (paper's method)")
-    disc.add_argument("--demos", type=Path, required=True, help="demonstrations dataset (.h5, from `record`)")
-    disc.add_argument("--out", type=Path, required=True, help="directory for the model, classes, grammar, figures")
+    disc.add_argument("--demos", type=_path, required=True, help="demonstrations dataset (.h5, from `record`)")
+    disc.add_argument("--out", type=_path, required=True, help="directory for the model, classes, grammar, figures")
     disc.add_argument("--threshold", type=float, help="state-merge threshold, nats (default: the tuned one)")
     disc.add_argument("--spacing", type=float, help="arc length per Gaussian, m (default: the tuned one)")
     disc.add_argument("--overwrite", action="store_true", help="replace previous results in --out")
@@ -93,16 +155,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _stop_on_sigterm(signum: int, frame: object) -> NoReturn:
+    """SIGTERM unwinds like Ctrl-C, so claimed outputs remove their partial files."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s"
     )
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _stop_on_sigterm) if in_main_thread else None
     try:
         return args.func(args)
     except HoapActionsError as error:  # a user's mistake or a bad file: say what, no traceback
         print(f"hoap-actions {args.command}: error: {error}", file=sys.stderr)
-        return 2
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"hoap-actions {args.command}: interrupted; no partial output was kept", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

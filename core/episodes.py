@@ -15,6 +15,8 @@ import numpy as np
 from tqdm import tqdm
 
 import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.seeds import check_seed
 
 
 class Policy(Protocol):
@@ -74,7 +76,15 @@ def run_episodes(
     snapshot: Path | None = None,
     env_kwargs: dict[str, Any] | None = None,
 ) -> list[EpisodeResult]:
-    """Episodes on seeds ``seed .. seed + episodes - 1``; the first one is filmed if asked."""
+    """Episodes on seeds ``seed .. seed + episodes - 1``; the first one is filmed if asked.
+
+    ``video`` (mp4) and ``snapshot`` (png) are written by the caller's claims: pass the partial
+    paths that :func:`hoap_actions.outputs.claimed_file` yields, so they are checked before the first
+    episode. Raises InvalidInputError for fewer than one episode or seeds outside 0..2**63-1.
+    """
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise InvalidInputError(f"episodes must be a positive integer; got {episodes!r}")
+    check_seed(seed, count=episodes)
     env = gymnasium.make(env_id, render_mode="rgb_array", **(env_kwargs or {}))
     policy = policy_factory(env)
     results = []
@@ -93,10 +103,8 @@ def _write_media(frames: list[np.ndarray], video: Path | None, snapshot: Path | 
     import imageio.v3 as iio
 
     if snapshot:
-        snapshot.parent.mkdir(parents=True, exist_ok=True)
         iio.imwrite(snapshot, frames[0])
     if video:
-        video.parent.mkdir(parents=True, exist_ok=True)
         iio.imwrite(video, np.stack(frames), fps=fps, codec="libx264", macro_block_size=1)
 
 

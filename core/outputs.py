@@ -4,7 +4,8 @@ A long job claims its outputs *before* it starts (so a bad path or an existing f
 second, not after an hour of recording), writes to a hidden partial beside the target, and
 publishes it in one atomic step at the end:
 
-- the claim is a partial file (or staging folder) ``.<name>.hoap-partial`` holding an exclusive
+- the claim is a partial file ``.<stem>.hoap-partial<suffix>`` (the suffix kept, for writers that
+  pick a format from it) or staging folder ``.<what>.hoap-partial``, holding an exclusive
   ``flock``: of two concurrent runs aimed at one target, the second gets :class:`DataExistsError`
   at once; the lock dies with its process, so a killed run never blocks a later one;
 - publishing without ``overwrite`` is ``os.link`` (create-or-fail: a file that appeared meanwhile
@@ -35,9 +36,9 @@ except ImportError:  # pragma: no cover - Windows
 
 logger = logging.getLogger(__name__)
 
-PARTIAL_SUFFIX = ".hoap-partial"
+PARTIAL_MARK = ".hoap-partial"
 
-__all__ = ["PARTIAL_SUFFIX", "claimed_file", "claimed_files", "check_output_path"]
+__all__ = ["PARTIAL_MARK", "check_output_path", "claimed_file", "claimed_files"]
 
 
 def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
@@ -56,7 +57,9 @@ def _make_folder(folder: Path, what: str) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputPathError(f"cannot create the folder {folder} for the {what}: {exc.strerror or exc}") from exc
+        raise OutputPathError(
+            f"cannot create the folder {folder} for the {what}: {exc.strerror or exc}; choose a folder you can write to"
+        ) from exc
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputPathError(f"the folder {folder} for the {what} is not writable")
 
@@ -64,10 +67,10 @@ def _make_folder(folder: Path, what: str) -> None:
 class _Claim:
     """An open, locked partial (file or folder); :meth:`release` closes it (the lock goes with it)."""
 
-    def __init__(self, partial: Path, folder: bool, what: str) -> None:
+    def __init__(self, target: Path, partial: Path, folder: bool, what: str) -> None:
         self.partial = partial
         self.folder = folder
-        self._fd = self._acquire(partial, folder, what)
+        self._fd = self._acquire(target, partial, folder, what)
 
     @staticmethod
     def _open(partial: Path, folder: bool) -> int:
@@ -78,16 +81,20 @@ class _Claim:
         flags = os.O_RDWR | os.O_CREAT | (0 if fcntl else os.O_EXCL)
         return os.open(partial, flags, 0o644)
 
-    def _acquire(self, partial: Path, folder: bool, what: str) -> int:
-        busy = DataExistsError(f"another process is writing the {what} {partial.name.removeprefix('.').removesuffix(PARTIAL_SUFFIX)} "
-                               f"in {partial.parent} (its partial {partial.name} is locked); wait for it or choose another path")
+    def _acquire(self, target: Path, partial: Path, folder: bool, what: str) -> int:
+        busy = DataExistsError(
+            f"another process is writing the {what} {target} (its partial {partial.name} is locked); "
+            "wait for it to finish or choose another path"
+        )
         for _ in range(100):  # retried only when the partial is replaced between open and lock
             try:
                 fd = self._open(partial, folder)
             except FileExistsError:
                 raise busy from None
             except OSError as exc:
-                raise OutputPathError(f"cannot write the {what} in {partial.parent}: {exc.strerror or exc}") from exc
+                raise OutputPathError(
+                    f"cannot write the {what} in {partial.parent}: {exc.strerror or exc}; choose a folder you can write to"
+                ) from exc
             if fcntl is None:
                 return fd
             try:
@@ -122,7 +129,7 @@ def _sweep_stale_partials(folder: Path, keep: Path) -> None:
     """Remove partials in ``folder`` whose lock is free: what killed runs left behind."""
     if fcntl is None:
         return
-    for stale in folder.glob(f".*{PARTIAL_SUFFIX}"):
+    for stale in folder.glob(f".*{PARTIAL_MARK}*"):
         if stale == keep:
             continue
         try:
@@ -180,7 +187,7 @@ def claimed_file(path: str | os.PathLike, overwrite: bool = False, what: str = "
     """
     path = check_output_path(path, what)
     _make_folder(path.parent, what)
-    claim = _Claim(path.with_name(f".{path.name}{PARTIAL_SUFFIX}"), folder=False, what=what)
+    claim = _Claim(path, path.with_name(f".{path.stem}{PARTIAL_MARK}{path.suffix}"), folder=False, what=what)
     try:
         if path.exists() and not overwrite:
             _refuse_existing(path, what)
@@ -211,7 +218,7 @@ def claimed_files(
     claim = None
     published: list[Path] = []
     try:
-        claim = _Claim(folder / f".{what.replace(' ', '-')}{PARTIAL_SUFFIX}", folder=True, what=what)
+        claim = _Claim(folder, folder / f".{what.replace(' ', '-')}{PARTIAL_MARK}", folder=True, what=what)
         existing = [name for name in names if (folder / name).exists()]
         if existing and not overwrite:
             raise DataExistsError(
