@@ -66,6 +66,14 @@ ROTATION_CONVENTION = (
 )
 FRAME = "scene frame: z up, origin on the table top at the centre of the active region, x away from the demonstrator"
 _ARRAY_OPTIONS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
+# Reading checks every entry exists and is plausible: a marker or object coordinate beyond this (m,
+# scene frame) is far outside any table-top scene, so the file is corrupt or mis-scaled.
+MAX_COORDINATE_M = 100.0
+ROTATION_SLACK_RAD = 1e-6  # float round-off allowed on the convention's |angle| <= pi
+_TRUTH_SHAPES = {"object_start": (6,), "object_end": (6,), "object_target": (6,), "hand_rest": (3,), "grid_index": (2,)}
+_TRUTH_ATTRIBUTES = ("action", "direction", "distance", "angle", "repetition", "grid")
+_EPISODE_ARRAYS = ("H", "O", "ground_truth/labels", *(f"ground_truth/{name}" for name in _TRUTH_SHAPES))
+_ROOT_ATTRIBUTES = ("marker_names", "phase_names", "episodes", "fps", "seed", "scene", "generator")
 
 
 def _array(array: np.ndarray, dtype: type | str = np.float64) -> np.ndarray:
@@ -252,8 +260,10 @@ def load_demonstrations(path: Path | str) -> Demonstrations:
     """Read a dataset written by :func:`write_demonstrations`.
 
     Raises :class:`DataFileError` for a missing, truncated or corrupt file (checksums are verified),
-    another format or version, a missing array, wrong shapes, labels outside the phase table, or
-    NaN/inf values; the message names the file and the episode.
+    another format or version, a missing array or attribute, wrong shapes (ground truth included),
+    labels outside the phase table, NaN/inf values, coordinates beyond :data:`MAX_COORDINATE_M` or
+    rotation vectors longer than pi; the message names the file, the episode, the entry and (for
+    values) the first bad frame.
     """
     path = Path(path)
     if not path.is_file():
@@ -275,52 +285,112 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     version = version.item() if isinstance(version, np.generic) else version
     if version != FORMAT_VERSION:
         raise DataFileError(f"{path}: format_version {version!r} is not supported; this code reads {FORMAT_VERSION}")
-    marker_names = tuple(str(m) for m in f.attrs["marker_names"])
-    phase_names = tuple(str(p) for p in f.attrs["phase_names"])
+    header = {name: _attribute(f, name, str(path)) for name in _ROOT_ATTRIBUTES}
+    marker_names = tuple(str(m) for m in header["marker_names"])
+    phase_names = tuple(str(p) for p in header["phase_names"])
     if len(marker_names) != N_MARKERS:
         raise DataFileError(f"{path}: expected {N_MARKERS} marker names, found {list(marker_names)}")
     names = sorted(name for name in f if name.startswith("episode_"))
-    if len(names) != int(f.attrs["episodes"]):
-        raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(f.attrs['episodes'])}")
-    episodes = tuple(_read_episode(f[name], f"{path}:{name}", len(phase_names), phase_names) for name in names)
+    if len(names) != int(header["episodes"]):
+        raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(header['episodes'])}")
+    episodes = []
+    for name in names:
+        if not isinstance(f[name], h5py.Group):
+            raise DataFileError(f"{path}:{name} is an array; accepted: a group holding {', '.join(_EPISODE_ARRAYS)}")
+        episodes.append(_read_episode(f[name], f"{path}:{name}", phase_names))
     return Demonstrations(
-        episodes=episodes,
-        fps=float(f.attrs["fps"]),
+        episodes=tuple(episodes),
+        fps=float(header["fps"]),
         marker_names=marker_names,
         phase_names=phase_names,
-        seed=int(f.attrs["seed"]),
-        scene=json.loads(f.attrs["scene"]),
-        generator=json.loads(f.attrs["generator"]),
+        seed=int(header["seed"]),
+        scene=json.loads(header["scene"]),
+        generator=json.loads(header["generator"]),
     )
 
 
-def _read_episode(group: h5py.Group, where: str, n_phases: int, phase_names: tuple[str, ...]) -> Episode:
-    H, O = group["H"][()], group["O"][()]
-    gt = group["ground_truth"]
-    labels = gt["labels"][()]
+def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...]) -> Episode:
+    """One episode with every entry checked, so an edited or damaged file fails here naming the episode
+    and the entry, not later in the learning code."""
+    H, O, labels = (_entry(group, name, where) for name in ("H", "O", "ground_truth/labels"))
     if H.ndim != 3 or H.shape[1:] != (N_MARKERS, 3) or len(H) < 1:
         raise DataFileError(f"{where}: H has shape {H.shape}, expected (T, {N_MARKERS}, 3) with T >= 1")
     if O.shape != (len(H), 6):
         raise DataFileError(f"{where}: O has shape {O.shape}, expected ({len(H)}, 6)")
-    if labels.shape != (len(H),):
-        raise DataFileError(f"{where}: labels have shape {labels.shape}, expected ({len(H)},)")
-    if not (np.all(np.isfinite(H)) and np.all(np.isfinite(O))):
-        raise DataFileError(f"{where}: H or O contains NaN or inf")
-    if labels.min() < 0 or labels.max() >= n_phases:
-        raise DataFileError(f"{where}: labels outside the phase table 0..{n_phases - 1}")
-    truth = GroundTruth(
-        labels=labels,
-        phase_names=phase_names,
-        action=str(gt.attrs["action"]),
-        direction=str(gt.attrs["direction"]),
-        distance=float(gt.attrs["distance"]),
-        angle=float(gt.attrs["angle"]),
-        object_start=gt["object_start"][()],
-        object_end=gt["object_end"][()],
-        object_target=gt["object_target"][()],
-        hand_rest=gt["hand_rest"][()],
-        repetition=int(gt.attrs["repetition"]),
-        grid=str(gt.attrs["grid"]),
-        grid_index=gt["grid_index"][()],
-    )
-    return Episode(H=H, O=O, ground_truth=truth, seed=tuple(group.attrs["seed"]))
+    if labels.shape != (len(H),) or labels.dtype.kind not in "iu":
+        raise DataFileError(f"{where}: labels have shape {labels.shape} and dtype {labels.dtype}, expected "
+                            f"({len(H)},) integers")
+    _check_poses(where, H, O)
+    if labels.min() < 0 or labels.max() >= len(phase_names):
+        raise DataFileError(f"{where}: labels outside the phase table 0..{len(phase_names) - 1}")
+    truth_arrays = {name: _entry(group, f"ground_truth/{name}", where) for name in _TRUTH_SHAPES}
+    for name, value in truth_arrays.items():
+        shape = _TRUTH_SHAPES[name]
+        kinds = "iu" if name == "grid_index" else "iuf"
+        if value.shape != shape or value.dtype.kind not in kinds or not np.all(np.isfinite(value)):
+            raise DataFileError(f"{where}: entry ground_truth/{name} has shape {value.shape} and dtype {value.dtype}; "
+                                f"accepted: {shape} finite {'integers' if kinds == 'iu' else 'numbers'}")
+    gt = group["ground_truth"]
+    attrs = {name: _attribute(gt, name, f"{where}/ground_truth") for name in _TRUTH_ATTRIBUTES}
+    try:
+        truth = GroundTruth(
+            labels=labels,
+            phase_names=phase_names,
+            action=str(attrs["action"]),
+            direction=str(attrs["direction"]),
+            distance=float(attrs["distance"]),
+            angle=float(attrs["angle"]),
+            repetition=int(attrs["repetition"]),
+            grid=str(attrs["grid"]),
+            **truth_arrays,
+        )
+        seed = tuple(int(s) for s in _attribute(group, "seed", where))
+    except (TypeError, ValueError) as exc:
+        raise DataFileError(f"{where}: a ground_truth or seed attribute is malformed ({exc}); accepted: distance, "
+                            "angle numbers, repetition an int, seed 2 ints") from exc
+    return Episode(H=H, O=O, ground_truth=truth, seed=seed)
+
+
+def _entry(group: h5py.Group, name: str, where: str) -> np.ndarray:
+    """The array ``name`` of an episode; a missing one (or a group in its place) raises DataFileError naming it."""
+    entry = group.get(name)
+    if not isinstance(entry, h5py.Dataset):
+        problem = "is missing" if entry is None else "is a group, not an array"
+        raise DataFileError(f"{where}: entry {name} {problem}; every episode holds {', '.join(_EPISODE_ARRAYS)}")
+    return entry[()]
+
+
+def _attribute(node: h5py.Group, name: str, where: str):
+    """The attribute ``name`` of a group or the file; a missing one raises DataFileError naming it."""
+    if name not in node.attrs:
+        raise DataFileError(f"{where}: attribute {name} is missing; see the file layout in {__name__}")
+    return node.attrs[name]
+
+
+def _check_poses(where: str, H: np.ndarray, O: np.ndarray) -> None:
+    """Finite markers and object poses within :data:`MAX_COORDINATE_M`, rotation vectors of angle <= pi.
+
+    A corrupt or mis-scaled value would otherwise surface deep in discovery (scipy's rotations, linear
+    algebra) without saying where it is; the error names the first bad frame.
+    """
+    markers = H.reshape(len(H), -1)
+    for name, values in (("H", markers), ("O", O)):
+        frames = np.flatnonzero(~np.isfinite(values).all(axis=1))
+        if frames.size:
+            raise DataFileError(f"{where}: {name} frame {frames[0]} contains NaN or inf ({frames.size} such "
+                                "frame(s)); accepted: finite values")
+    bound = f"coordinates within +-{MAX_COORDINATE_M:g} m of the scene origin"
+    _raise_beyond(where, "H", np.abs(markers).max(axis=1), MAX_COORDINATE_M, "a marker coordinate of", "m", bound)
+    _raise_beyond(where, "O", np.abs(O[:, :3]).max(axis=1), MAX_COORDINATE_M, "an object coordinate of", "m", bound)
+    with np.errstate(over="ignore"):
+        angle = np.linalg.norm(O[:, 3:], axis=1)
+    _raise_beyond(where, "O", angle, np.pi + ROTATION_SLACK_RAD, "a rotation vector of angle", "rad",
+                  "rotation vectors with angle <= pi, as scipy's Rotation.as_rotvec() gives them")
+
+
+def _raise_beyond(where: str, name: str, size: np.ndarray, limit: float, what: str, unit: str, accepted: str) -> None:
+    """Raise DataFileError naming the first frame whose ``size`` (T,) exceeds ``limit``, and how many do."""
+    frames = np.flatnonzero(size > limit)
+    if frames.size:
+        raise DataFileError(f"{where}: {name} frame {frames[0]} has {what} {size[frames[0]]:.3g} {unit} "
+                            f"({frames.size} such frame(s)); accepted: {accepted}")
