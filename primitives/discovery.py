@@ -67,6 +67,7 @@ from scipy.spatial.transform import Rotation
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
 from hoap_actions.primitives import hmm_math
+from hoap_actions.primitives.datasets import MAX_COORDINATE_M
 from hoap_actions.primitives.json_files import read_json_model, write_json_model
 
 logger = logging.getLogger(__name__)
@@ -83,6 +84,9 @@ REST_FLOOR = 0.1  # fraction of the rest tolerance below which a displacement is
 DECODE_CELLS = 4_000_000  # frames x states decoded per batch: bounds the decoding's memory (~100 MB)
 APPROACH, MANIPULATION, REMOVE = "approach", "manipulation", "remove"
 UNKNOWN = -1
+# Longest object rotation vector accepted (rad): any rotation, from a quaternion of either sign, is
+# within 2 pi; far longer ones are corrupt values on which scipy's rotations break down.
+MAX_ROTATION_ANGLE_RAD = 2.0 * math.pi
 
 
 # ----------------------------------------------------------------------------- Gaussians (eqs. 1-3)
@@ -482,13 +486,15 @@ class PrimitiveDiscovery:
 
         ``trajectories``: list of raw object poses ``(T_i, 6)`` = position (m) + rotation vector (rad),
         world frame, one fixed sampling rate. ``hands``: optional matching arm markers ``(T_i, 18)``
-        (6 markers x xyz, m) for the effects of approach and remove.
+        (6 markers x xyz, m) for the effects of approach and remove. Coordinates beyond
+        :data:`~hoap_actions.primitives.datasets.MAX_COORDINATE_M` and rotation vectors longer than
+        :data:`MAX_ROTATION_ANGLE_RAD` raise InvalidInputError naming the trajectory and the frame.
 
         A single demonstration gives approach, one manipulation primitive (nothing to compare it
         with) and remove. A trajectory whose object never moves is one rest: all of it is approach.
         """
         self._check_params()
-        objects = _check_trajectories(trajectories, OBJECT_DIM, "trajectories")
+        objects = _check_objects(trajectories)
         arms = None if hands is None else _check_hands(hands, objects)
         relative, pieces = zip(*(self._prepare(o) for o in objects))
         self._build_joint_hmm(relative, pieces)
@@ -515,7 +521,7 @@ class PrimitiveDiscovery:
     def relative_trajectories(self, trajectories: Sequence[np.ndarray]) -> list[np.ndarray]:
         """Raw object poses ``(T_i, 6)`` as :meth:`fit` models them: relative to the initial rest pose (m, rad)."""
         self._check_params()
-        return [self._prepare(o)[0] for o in _check_trajectories(trajectories, OBJECT_DIM, "trajectories")]
+        return [self._prepare(o)[0] for o in _check_objects(trajectories)]
 
     def _prepare(self, poses: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]]:
         """The trajectory relative to its initial rest pose, and its pieces."""
@@ -775,7 +781,7 @@ class PrimitiveDiscovery:
         Frames whose states start no known primitive are labelled ``UNKNOWN`` (-1).
         """
         self._check_fitted()
-        objects = _check_trajectories(trajectories, OBJECT_DIM, "trajectories")
+        objects = _check_objects(trajectories)
         relative, pieces = zip(*(self._prepare(o) for o in objects))
         runs = self._decode(relative, pieces)
         ids = {kind: self.primitive_kinds_.index(kind) for kind in (APPROACH, REMOVE) if kind in self.primitive_kinds_}
@@ -891,12 +897,40 @@ def _check_trajectories(trajectories: Sequence[np.ndarray], dim: int, name: str)
     return checked
 
 
+def _check_objects(trajectories: Sequence[np.ndarray]) -> list[np.ndarray]:
+    """Validate object poses ``(T_i, 6)``: finite, positions within :data:`MAX_COORDINATE_M`, rotation
+    vectors within :data:`MAX_ROTATION_ANGLE_RAD`, so a corrupt frame is named here, not in scipy."""
+    objects = _check_trajectories(trajectories, OBJECT_DIM, "trajectories")
+    for i, poses in enumerate(objects):
+        _check_bound(f"trajectories[{i}]", np.abs(poses[:, :3]).max(axis=1), MAX_COORDINATE_M,
+                     "an object coordinate of", "m", "positions within +-{limit:g} m of the scene origin")
+        with np.errstate(over="ignore"):
+            angle = np.linalg.norm(poses[:, 3:], axis=1)
+        _check_bound(f"trajectories[{i}]", angle, MAX_ROTATION_ANGLE_RAD, "a rotation vector of angle", "rad",
+                     "rotation vectors of angle <= {limit:.4g} rad (2 pi)")
+    return objects
+
+
+def _check_bound(where: str, size: np.ndarray, limit: float, what: str, unit: str, accepted: str) -> None:
+    """Raise InvalidInputError naming the first frame whose ``size`` (T,) exceeds ``limit``.
+
+    ``accepted`` says what is accepted, with ``{limit}`` standing for the limit.
+    """
+    frames = np.flatnonzero(size > limit)
+    if len(frames):
+        raise InvalidInputError(f"{where} frame {frames[0]} has {what} {size[frames[0]]:.3g} {unit} "
+                                f"({len(frames)} such frame(s)); accepted: {accepted.format(limit=limit)}")
+
+
 def _check_hands(hands: Sequence[np.ndarray], objects: list[np.ndarray]) -> list[np.ndarray]:
-    """Validate arm-marker trajectories: one ``(T_i, 18)`` array per object trajectory, same lengths."""
+    """Validate arm-marker trajectories: one ``(T_i, 18)`` array per object trajectory, same lengths,
+    coordinates within :data:`MAX_COORDINATE_M`."""
     arms = _check_trajectories(hands, HAND_DIM, "hands")
     if len(arms) != len(objects):
         raise InvalidInputError(f"got {len(arms)} hand trajectories for {len(objects)} object trajectories")
     for i, (arm, obj) in enumerate(zip(arms, objects)):
         if len(arm) != len(obj):
             raise InvalidInputError(f"hands[{i}] has {len(arm)} frames but trajectories[{i}] has {len(obj)}")
+        _check_bound(f"hands[{i}]", np.abs(arm).max(axis=1), MAX_COORDINATE_M, "a marker coordinate of", "m",
+                     "marker positions within +-{limit:g} m of the scene origin")
     return arms
