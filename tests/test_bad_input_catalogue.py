@@ -1,0 +1,411 @@
+"""The bad-input catalogue: what a user may pass that once killed the process or lost data.
+
+One test per catalogue row, named after what it checks. Each row that could end the interpreter
+runs in a subprocess, so a regression fails the test instead of ending pytest. Rows 7-8 (balance,
+servo speeds) and 9-11, 16-18 (model and dataset files) follow the same naming in this module.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+
+import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.cli import main
+from hoap_actions.errors import DataExistsError, DisplayUnavailableError, InvalidInputError
+from hoap_actions.outputs import PARTIAL_MARK, claimed_file, claimed_files
+from hoap_actions.primitives.datasets import load_demonstrations, write_demonstrations
+from hoap_actions.primitives.discovery_report import OUTPUT_FILES
+
+PEG = "hoap_actions/PegInsert-v0"
+SUBPROCESS_TIMEOUT = 120  # s
+
+
+def run_python(code: str, env: dict[str, str] | None = None, timeout: float = SUBPROCESS_TIMEOUT) -> subprocess.CompletedProcess:
+    """Run ``code`` in a fresh interpreter; whatever PyBullet does there cannot end this one."""
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env, timeout=timeout
+    )
+
+
+def headless_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("DISPLAY", None)
+    return env
+
+
+def cli(*args: str, timeout: float = SUBPROCESS_TIMEOUT) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "hoap_actions", *args], capture_output=True, text=True, timeout=timeout
+    )
+
+
+# --------------------------------------------------------------------------- rows 1-3: rendering
+def test_row1_human_render_without_display_raises_instead_of_exiting():
+    result = run_python(
+        """
+        import gymnasium, hoap_actions
+        from hoap_actions.errors import DisplayUnavailableError
+        try:
+            gymnasium.make("hoap_actions/PegInsert-v0", render_mode="human")
+        except DisplayUnavailableError as error:
+            print("raised:", error)
+        """,
+        env=headless_env(),
+    )
+    assert result.returncode == 0, result.stderr
+    assert "raised: render_mode='human' needs a display" in result.stdout
+    assert "rgb_array" in result.stdout  # says what is accepted instead
+
+
+def test_row1_human_render_with_unreachable_display_raises_instead_of_exiting():
+    env = headless_env()
+    env["DISPLAY"] = ":31999"  # no X server listens there
+    result = run_python(
+        """
+        import gymnasium, hoap_actions
+        from hoap_actions.errors import DisplayUnavailableError
+        try:
+            gymnasium.make("hoap_actions/Reach-v0", render_mode="human")
+        except DisplayUnavailableError as error:
+            print("raised:", error)
+        """,
+        env=env,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "cannot open the X display" in result.stdout
+
+
+def test_row2_check_env_without_skip_render_check_reports_an_error_headless():
+    result = run_python(
+        """
+        import gymnasium, hoap_actions
+        from gymnasium.utils.env_checker import check_env
+        from hoap_actions.errors import DisplayUnavailableError
+        env = gymnasium.make("hoap_actions/Reach-v0")
+        try:
+            check_env(env.unwrapped)
+        except DisplayUnavailableError as error:
+            print("reported:", type(error).__name__)
+        """,
+        env=headless_env(),
+    )
+    assert result.returncode == 0, result.stderr
+    assert "reported: DisplayUnavailableError" in result.stdout
+
+
+@pytest.fixture(scope="module")
+def x_display():
+    """A display for PyBullet's GUI: a private Xvfb server. CI sets HOAP_ACTIONS_REQUIRE_DISPLAY=1 (and
+    installs xvfb), so there a missing server fails the test instead of skipping it."""
+    xvfb = shutil.which("Xvfb")
+    if xvfb is None:
+        if os.environ.get("HOAP_ACTIONS_REQUIRE_DISPLAY") == "1":
+            pytest.fail("Xvfb is not installed, and HOAP_ACTIONS_REQUIRE_DISPLAY=1 asks for the GUI tests")
+        pytest.skip("Xvfb is not installed (Debian: apt-get install xvfb)")
+    read_end, write_end = os.pipe()
+    server = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+                              pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    with os.fdopen(read_end) as reader:
+        number = reader.readline().strip()  # Xvfb writes its display number once it accepts clients
+    try:
+        assert number, "Xvfb did not start"
+        yield f":{number}"
+    finally:
+        server.terminate()
+        server.wait(timeout=SUBPROCESS_TIMEOUT)
+
+
+def test_human_mode_steps_and_renders_under_a_virtual_x_server(x_display):
+    env = headless_env()
+    env["DISPLAY"] = x_display
+    result = run_python(
+        """
+        import gymnasium, hoap_actions, numpy as np
+        from gymnasium.utils.env_checker import check_env
+        from hoap_actions.errors import DisplayUnavailableError
+        env = gymnasium.make("hoap_actions/Reach-v0", render_mode="human")
+        env.reset(seed=0)
+        for _ in range(30):
+            env.step(env.action_space.sample())
+        assert env.render() is None  # human mode draws in the window, as Gymnasium specifies
+        image = env.unwrapped.sim.render("front").rgb  # the window's OpenGL renderer
+        print("distinct colours", len(np.unique(image.reshape(-1, 3), axis=0)))
+        try:
+            gymnasium.make("hoap_actions/Reach-v0", render_mode="human")
+        except DisplayUnavailableError as error:
+            print("second window:", error)
+        env.close()
+        check_env(gymnasium.make("hoap_actions/Reach-v0").unwrapped)  # makes and renders the human env too
+        print("check_env passed")
+        """,
+        env=env,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    colours = int(result.stdout.split("distinct colours")[1].split()[0])
+    assert colours > 20  # a rendered scene, not a blank frame
+    assert "second window: PyBullet could not open its GUI server" in result.stdout
+    assert "check_env passed" in result.stdout
+
+
+@pytest.mark.parametrize(
+    "size", [{"render_width": -5}, {"render_height": -1}, {"render_width": 0}, {"render_width": 1.7},
+             {"render_width": 100_000, "render_height": 100_000}, {"render_width": True}]
+)
+def test_row3_render_sizes_outside_whole_1_to_4096_pixels_are_refused(size):
+    with pytest.raises(InvalidInputError, match=r"integer number of pixels in 1\.\.4096"):
+        gymnasium.make(PEG, render_mode="rgb_array", **size)
+
+
+def test_row3_accepted_render_size_gives_that_image():
+    env = gymnasium.make("hoap_actions/Reach-v0", render_mode="rgb_array", render_width=64, render_height=48)
+    env.reset(seed=0)
+    assert env.render().shape == (48, 64, 3)
+    env.close()
+
+
+# ------------------------------------------------------------------- rows 4-6: outputs and claims
+def _race_writer(path: str, tag: float, barrier, results) -> None:
+    """Worker: write a dataset tagged ``tag`` to ``path`` the moment every worker is ready."""
+    demos = _tagged_demos(tag)
+    barrier.wait()
+    try:
+        write_demonstrations(path, demos)
+        results.put(("won", tag))
+    except DataExistsError as error:
+        results.put(("refused", str(error)))
+
+
+def _tagged_demos(tag: float):
+    """A valid one-episode dataset whose hand markers all equal ``tag`` (to tell the writers apart)."""
+    from hoap_actions.primitives.datasets import N_MARKERS, Demonstrations, Episode, GroundTruth
+
+    T = 20
+    truth = GroundTruth(
+        labels=np.zeros(T, dtype=np.int64), phase_names=("approach",), action="approach", direction="",
+        distance=0.0, angle=0.0, object_start=np.zeros(6), object_end=np.zeros(6), object_target=np.zeros(6),
+        hand_rest=np.zeros(3), repetition=0, grid="", grid_index=np.zeros(2, dtype=np.int64),
+    )
+    episode = Episode(H=np.full((T, N_MARKERS, 3), tag), O=np.zeros((T, 6)), ground_truth=truth, seed=(0, 1))
+    names = tuple(f"m{i}" for i in range(N_MARKERS))
+    return Demonstrations(episodes=(episode,), fps=30.0, marker_names=names, phase_names=("approach",), seed=0,
+                          scene={}, generator={})
+
+
+def test_row4_concurrent_dataset_writers_one_wins_the_others_get_exists(tmp_path):
+    path = str(tmp_path / "demos.h5")
+    context = multiprocessing.get_context("fork")
+    n = 4
+    barrier, results = context.Barrier(n), context.Queue()
+    workers = [context.Process(target=_race_writer, args=(path, float(k + 1), barrier, results)) for k in range(n)]
+    for w in workers:
+        w.start()
+    outcomes = [results.get(timeout=SUBPROCESS_TIMEOUT) for _ in workers]
+    for w in workers:
+        w.join(timeout=SUBPROCESS_TIMEOUT)
+    winners = [tag for kind, tag in outcomes if kind == "won"]
+    refusals = [text for kind, text in outcomes if kind == "refused"]
+    assert len(winners) == 1 and len(refusals) == n - 1
+    assert all("already exists" in text or "another process is writing" in text for text in refusals)
+    assert np.all(load_demonstrations(path)[0].H == winners[0])  # the file is the winner's, whole
+    assert not list(tmp_path.glob(f"*{PARTIAL_MARK}*"))
+
+
+def test_row4_dataset_writer_refuses_while_another_holds_the_claim(tmp_path):
+    path = tmp_path / "demos.h5"
+    with claimed_file(path, what="dataset") as partial:
+        with pytest.raises(DataExistsError, match="another process is writing"):
+            write_demonstrations(path, _tagged_demos(1.0))
+        partial.write_text("the first claimant's")
+    assert path.read_text() == "the first claimant's"
+
+
+def test_row5_discover_refuses_an_output_folder_another_run_is_writing(tmp_path, capsys):
+    out = tmp_path / "primitives"
+    demos = write_demonstrations(tmp_path / "demos.h5", _tagged_demos(1.0))
+    with pytest.raises(KeyboardInterrupt):  # the first run is interrupted after the second one tried
+        with claimed_files(out, OUTPUT_FILES, what="discovery results"):
+            assert main(["discover", "--demos", str(demos), "--out", str(out)]) == 2
+            raise KeyboardInterrupt
+    assert "another process is writing" in capsys.readouterr().err
+    assert not out.exists()  # neither run left anything: the folder they created is gone too
+
+
+def test_row5_claimed_files_publish_all_or_none(tmp_path):
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "b.txt").write_text("someone else's")
+    with pytest.raises(DataExistsError, match="b.txt"):
+        with claimed_files(out, ["a.txt", "b.txt"]):
+            pass
+    with pytest.raises(RuntimeError):
+        with claimed_files(out, ["a.txt", "c.txt"]) as staging:
+            (staging / "a.txt").write_text("new")
+            raise RuntimeError("the job failed")
+    with pytest.raises(FileNotFoundError):  # c.txt never written: a.txt must not be published alone
+        with claimed_files(out, ["a.txt", "c.txt"]) as staging:
+            (staging / "a.txt").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt"]
+
+
+@pytest.fixture
+def no_long_work(monkeypatch):
+    """Fail the test if a command gets as far as its long work."""
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("long work started before the arguments and outputs were checked")
+
+    import hoap_actions.cli as cli_module
+    import hoap_actions.envs.recording as recording
+    import hoap_actions.primitives.discovery_report as report
+
+    monkeypatch.setattr(recording, "_record_tasks", forbidden)
+    monkeypatch.setattr(cli_module, "run_episodes", forbidden)
+    monkeypatch.setattr(report, "_discover", forbidden)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["record", "--preset", "small", "--out", "/proc/x.h5"], "cannot write the dataset in /proc"),
+        (["record", "--preset", "small", "--out", "{tmp}", "--overwrite"], "is a directory"),
+        (["record", "--preset", "small", "--out", "{tmp}/existing.h5"], "already exists"),
+        (["demo", "--video", "/proc/x.mp4"], "cannot write the video in /proc"),
+        (["demo", "--json", "/proc/x.json"], "cannot write the report in /proc"),
+        (["demo", "--snapshot", "{tmp}/existing.h5"], "already exists"),
+        (["discover", "--demos", "{tmp}/existing.h5", "--out", "/proc/x"], "cannot create the folder /proc/x"),
+    ],
+)
+def test_row6_outputs_are_checked_before_long_work_starts(argv, message, tmp_path, no_long_work, capsys):
+    (tmp_path / "existing.h5").write_bytes(b"a user's file")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1  # one line
+    assert (tmp_path / "existing.h5").read_bytes() == b"a user's file"
+
+
+def test_row6_seed_beyond_int64_is_refused_before_recording(tmp_path, no_long_work, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["record", "--preset", "small", "--out", str(tmp_path / "a.h5"), "--seed", "9223372036854775808"])
+    assert exit_info.value.code == 2
+    assert "a seed is an integer in 0..9223372036854775807" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------ rows 12-15: arguments
+@pytest.mark.parametrize("episodes", ["0", "-1"])
+def test_row12_demo_refuses_fewer_than_one_episode(episodes, no_long_work, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["demo", "--episodes", episodes])
+    assert exit_info.value.code == 2
+    assert "must be a positive integer" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["record", "--preset", "small", "--out", "x.h5", "--seed", "-1"], "a seed is an integer in 0.."),
+        (["demo", "--seed", "-1"], "a seed is an integer in 0.."),
+        (["demo", "--env", "bogus/Env-v0"], "invalid choice: 'bogus/Env-v0' (choose from 'hoap_actions/PegInsert-v0'"),
+        (["demo", "--env", "CartPole-v1"], "invalid choice: 'CartPole-v1'"),
+    ],
+)
+def test_row13_bad_seeds_and_env_ids_exit_2_with_one_line(argv, message):
+    result = cli(*argv)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+
+
+def test_row13_scripted_policy_outside_its_envs_is_refused(no_long_work, capsys):
+    assert main(["demo", "--policy", "scripted", "--env", "hoap_actions/Reach-v0"]) == 2
+    assert "acts in ['hoap_actions/PegInsert-v0']" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def peg_env():
+    env = gymnasium.make(PEG)
+    env.reset(seed=0)
+    yield env
+    env.close()
+
+
+@pytest.mark.parametrize("action", ["abc", {"a": 1}, [[1, 2], [3]], None])
+def test_row14_non_numeric_actions_raise_the_projects_error_with_the_accepted_shape(peg_env, action):
+    with pytest.raises(InvalidInputError, match=r"expects an array of 7 finite numbers in \[-1, 1\]"):
+        peg_env.step(action)
+
+
+def test_row15_out_of_range_actions_are_clipped_and_info_says_so():
+    runs = []
+    for action in (np.full(7, 5.0), np.ones(7)):
+        env = gymnasium.make(PEG)
+        env.reset(seed=3)
+        obs, _, _, _, info = env.step(action)
+        runs.append((obs["observation"], info["action_clipped"]))
+        env.close()
+    (clipped_obs, clipped_flag), (unit_obs, unit_flag) = runs
+    assert clipped_flag and not unit_flag
+    np.testing.assert_array_equal(clipped_obs, unit_obs)  # 5.0 acts exactly as 1.0
+
+
+# ---------------------------------------------------------------------- rows 19-21: the command line
+def test_row19_empty_output_path_is_refused(no_long_work, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["record", "--preset", "small", "--out", ""])
+    assert exit_info.value.code == 2
+    assert "an empty path" in capsys.readouterr().err
+
+
+def _wait_for(predicate, timeout: float = 60.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_row20_an_interrupted_record_leaves_no_partial_file(tmp_path, sig):
+    out = tmp_path / "demos.h5"
+    process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "small", "--out", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert _wait_for(lambda: list(tmp_path.glob(f".*{PARTIAL_MARK}*"))), "the run never claimed its output"
+    process.send_signal(sig)
+    _, err = process.communicate(timeout=SUBPROCESS_TIMEOUT)
+    assert process.returncode == 130 and "interrupted" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_row20_a_killed_records_partial_is_swept_by_the_next_run(tmp_path):
+    out = tmp_path / "demos.h5"
+    process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "small", "--out", str(out)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    assert _wait_for(lambda: list(tmp_path.glob(f".*{PARTIAL_MARK}*")))
+    process.kill()  # SIGKILL: nothing runs in the process, its partial stays
+    process.wait(timeout=SUBPROCESS_TIMEOUT)
+    assert list(tmp_path.glob(f".*{PARTIAL_MARK}*"))
+    with claimed_file(tmp_path / "other.txt") as partial:  # any later claim in the folder
+        partial.write_text("x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.txt"]
+
+
+def test_row21_cli_output_is_only_what_the_command_says():
+    result = cli("demo", "--env", "hoap_actions/Reach-v0", "--episodes", "1")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("random policy on hoap_actions/Reach-v0: success rate")
+    assert "argv" not in result.stdout
+    assert result.stderr == ""  # no PyBullet build line, no placo/hppfcl DeprecationWarning
