@@ -1,0 +1,471 @@
+"""Learned action models: one parametric HMM per discovered primitive class, and the action grammar.
+
+This is the paper's learning step after discovery ("Recognition with HMMs and PHMMs"): every
+equivalence class of arm movements that :class:`~hoap_actions.primitives.discovery.PrimitiveDiscovery`
+finds becomes a left-right :class:`~hoap_actions.primitives.parametric_hmm.ParametricHMM` whose state
+means move with the class's effect phi, and the classes' order in the demonstrations becomes an
+:class:`~hoap_actions.primitives.grammar.ActionGrammar`. Fitted, the models
+
+- **synthesise** a movement of a class for a desired effect (:meth:`ActionModels.synthesize`),
+- **recognise** a movement: its class, its effect and every class's log-likelihood
+  (:meth:`ActionModels.recognize`),
+- **decode** a demonstration cut into pieces: the grammatical class sequence that best explains the
+  pieces (:meth:`ActionModels.decode_segments`).
+
+Choices, each measured on a validation split of ``paper`` recordings (training seeds 0 and 2,
+held-out seed 3; figures in ``benchmarks/results/NOTES.md``):
+
+- **Observations**: the 6 markers' positions (18-D) and their displacement over 0.1 s (18-D): the
+  successive pieces of one push or carry move the hand alike and differ mostly in speed.
+- **Effect**: phi = (initial, final) 3-D location, of the object for a manipulation and of the hand
+  marker for approach and remove, as in the paper (every primitive biparametric). Each class's PHMM
+  sees phi reduced to the principal directions in which its training effects vary by more than
+  ``effect_tol`` (at most ``n_segments - 2`` of them): the object stays on the table, so z never
+  varies and a 6-D phi would not be identifiable. Every public method speaks the full 6-D phi.
+- **States**: as many as the class's shortest training segment has frames times
+  ``state_fraction``, at most ``max_states``; diagonal covariances.
+- **Variance prior**: a manipulation piece is a class with a handful of segments, whose state
+  variances would collapse onto ``reg_covar``; such classes are refitted with a conjugate prior
+  (``covars_weight`` frames per state) on the within-state variances pooled over all of them.
+- **Decoding**: the strict grammar of the transitions seen in training; a piece shorter than a
+  class's chain costs that class ``unexplained_penalty`` nats instead of ruling it out; neighbouring
+  manipulation pieces must agree on the object's location at their cut
+  (``continuity_weight`` nats per m^2 of gap, :mod:`~hoap_actions.primitives.effect_continuity`).
+
+Files: :meth:`ActionModels.save` writes a models directory (layout in :data:`MODELS_FILES`);
+:meth:`ActionModels.load` validates every file and names the one that is wrong.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.outputs import claimed_files
+from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.effect_continuity import effect_gap_scores
+from hoap_actions.primitives.grammar import ActionGrammar
+from hoap_actions.primitives.parametric_hmm import ParametricHMM, recognize
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["MODELS_FILES", "ActionModels", "ClassModel", "SegmentRecognition", "marker_features"]
+
+FORMAT_VERSION = 1
+KIND = "ActionModels"
+MANIFEST = "manifest.json"
+MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
+"""Files of a models directory besides one ``class_<id>.npz`` (a :class:`ParametricHMM`) per class:
+the manifest (format, hyper-parameters, classes with their kinds and effect reductions), the fitted
+discovery (which also cuts new object trajectories) and the grammar."""
+DISPLACEMENT_WINDOW_S = 0.1  # s, the marker displacement appended to the positions
+EFFECT_DIM = 6  # phi = initial xyz, final xyz (m)
+
+
+def marker_features(H: np.ndarray, fps: float, velocity: bool = True) -> np.ndarray:
+    """Model input of one movement: markers ``(T, 18)`` (or ``(T, M, 3)``) in metres, with each
+    marker's displacement over :data:`DISPLACEMENT_WINDOW_S` appended when ``velocity``: ``(T, 36)``."""
+    X = np.asarray(H, dtype=float).reshape(len(H), -1)
+    if not velocity:
+        return X
+    displacement = np.gradient(X, axis=0) * (fps * DISPLACEMENT_WINDOW_S) if len(X) > 1 else np.zeros_like(X)
+    return np.hstack([X, displacement])
+
+
+@dataclass(frozen=True)
+class ClassModel:
+    """One class's PHMM and the affine map between its reduced effect and the full phi (6,)."""
+
+    class_id: int
+    kind: str
+    phmm: ParametricHMM
+    centre: np.ndarray  # (6,) mean training effect
+    basis: np.ndarray  # (6, r) principal directions the PHMM's reduced phi runs along
+
+    def full_phi(self, reduced: np.ndarray) -> np.ndarray:
+        return self.centre + self.basis @ reduced
+
+    def reduced_phi(self, phi: np.ndarray) -> np.ndarray:
+        return (np.asarray(phi, float) - self.centre) @ self.basis
+
+
+@dataclass(frozen=True)
+class SegmentRecognition:
+    """A recognised movement: the best class, its phi (6,), and every class's log-likelihood and phi.
+
+    Classes whose chain is longer than the movement score ``-inf`` and have no phi.
+    """
+
+    class_id: int
+    phi: np.ndarray
+    log_likelihoods: Mapping[int, float]
+    phis: Mapping[int, np.ndarray]
+
+
+class ActionModels:
+    """Learn, recognise and synthesise with one PHMM per discovered class (module docstring: the choices).
+
+    Args:
+        covariance_type, reg_covar: the PHMMs' (see :class:`ParametricHMM`).
+        covars_weight: frames per state of the manipulation classes' pooled variance prior (0: none).
+        effect_tol: least spread (m) of a phi direction a class's PHMM models.
+        max_states, state_fraction: states per class (see the module docstring).
+        velocity: append marker displacements to the positions.
+        n_restarts: phi estimates started per class and movement in :meth:`recognize`.
+        unexplained_penalty: nats a class pays for a piece shorter than its chain (``None``: ruled out).
+        continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
+
+    Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
+    ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``.
+    """
+
+    def __init__(
+        self,
+        covariance_type: str = "diag",
+        reg_covar: float = 1e-5,
+        covars_weight: float = 5.0,
+        effect_tol: float = 0.01,
+        max_states: int = 40,
+        state_fraction: float = 1.0,
+        velocity: bool = True,
+        n_restarts: int = 5,
+        unexplained_penalty: float | None = 1000.0,
+        continuity_weight: float = 1e6,
+    ) -> None:
+        self.covariance_type = covariance_type
+        self.reg_covar = reg_covar
+        self.covars_weight = covars_weight
+        self.effect_tol = effect_tol
+        self.max_states = max_states
+        self.state_fraction = state_fraction
+        self.velocity = velocity
+        self.n_restarts = n_restarts
+        self.unexplained_penalty = unexplained_penalty
+        self.continuity_weight = continuity_weight
+
+    def get_params(self) -> dict:
+        return {name: getattr(self, name) for name in (
+            "covariance_type", "reg_covar", "covars_weight", "effect_tol", "max_states", "state_fraction",
+            "velocity", "n_restarts", "unexplained_penalty", "continuity_weight")}
+
+    def __repr__(self) -> str:
+        return f"ActionModels({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"
+
+    def _check_params(self) -> None:
+        def number(name: str, low: float, high: float = math.inf, low_open: bool = False) -> None:
+            value = getattr(self, name)
+            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+            ok = ok and np.isfinite(value) and (value > low if low_open else value >= low) and value <= high
+            if not ok:
+                bound = f"{'(' if low_open else '['}{low}, {high}{']' if np.isfinite(high) else ')'}"
+                raise InvalidInputError(f"{name} must be a number in {bound}; got {value!r}")
+
+        if self.covariance_type not in ("diag", "full"):
+            raise InvalidInputError(f"covariance_type must be 'diag' or 'full'; got {self.covariance_type!r}")
+        number("reg_covar", 0.0, low_open=True)
+        number("covars_weight", 0.0)
+        number("effect_tol", 0.0)
+        number("state_fraction", 0.0, 1.0, low_open=True)
+        number("continuity_weight", 0.0)
+        if self.unexplained_penalty is not None:
+            number("unexplained_penalty", 0.0)
+        for name in ("max_states", "n_restarts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise InvalidInputError(f"{name} must be an int >= 1; got {value!r}")
+        if not isinstance(self.velocity, bool):
+            raise InvalidInputError(f"velocity must be True or False; got {self.velocity!r}")
+
+    # ------------------------------------------------------------------------------------- fit
+    def fit(
+        self,
+        H: np.ndarray,
+        lengths: Sequence[int],
+        discovery: PrimitiveDiscovery,
+        fps: float,
+        marker_names: Sequence[str] | None = None,
+    ) -> ActionModels:
+        """Fit one PHMM per class of ``discovery`` and the grammar of its segmentations.
+
+        ``H`` are the demonstrations' arm markers, concatenated ``(N, 18)`` or ``(N, 6, 3)`` (m), with
+        ``lengths`` frames each, recorded at ``fps``; ``discovery`` was fitted on the same
+        demonstrations in the same order (its segments index them).
+        """
+        self._check_params()
+        hands = _split(H, lengths)
+        if not hasattr(discovery, "classes_"):
+            raise NotFittedError("discovery must be a fitted PrimitiveDiscovery (call its fit first)")
+        n_demos = len(discovery.segmentations_)
+        if n_demos != len(hands):
+            raise InvalidInputError(
+                f"discovery was fitted on {n_demos} demonstrations but H holds {len(hands)} (lengths); give the same ones"
+            )
+        if not (isinstance(fps, (int, float)) and np.isfinite(fps) and fps > 0):
+            raise InvalidInputError(f"fps must be a positive number of frames per second; got {fps!r}")
+        self.fps_ = float(fps)
+        self.marker_names_ = tuple(marker_names) if marker_names is not None else tuple(f"marker_{i}" for i in range(hands[0].shape[1] // 3))
+        inputs = [marker_features(h, self.fps_, self.velocity) for h in hands]
+        fitted = {c.primitive_id: self._fit_class(c, inputs, None) for c in discovery.classes_}
+        pieces = [c for c in discovery.classes_ if c.kind == MANIPULATION]
+        self.covars_prior_ = None
+        if self.covars_weight > 0 and pieces:  # the first fit's variances make the pooled prior
+            frames = [sum(s.end - s.start for s in c.segments) for c in pieces]
+            self.covars_prior_ = _pooled_variances([fitted[c.primitive_id].phmm for c in pieces], frames, self.reg_covar)
+            fitted.update({c.primitive_id: self._fit_class(c, inputs, self.covars_prior_) for c in pieces})
+        self.classes_ = {int(cid): fitted[cid] for cid in sorted(fitted)}
+        self.grammar_ = ActionGrammar(0.0).fit([[int(pid) for pid, *_ in seg] for seg in discovery.segmentations_])
+        self.discovery_ = discovery
+        return self
+
+    def _fit_class(self, cls, inputs: list[np.ndarray], covars_prior: np.ndarray | None) -> ClassModel:
+        effects = cls.effects
+        centre = effects.mean(axis=0)
+        _, singular, vt = np.linalg.svd(effects - centre, full_matrices=False)
+        spread = singular / np.sqrt(len(effects))
+        rank = int(min(np.sum(spread > self.effect_tol), max(len(effects) - 2, 0)))
+        basis = vt[:rank].T
+        movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
+        lengths = np.array([len(m) for m in movements])
+        n_states = max(1, int(min(self.max_states, self.state_fraction * lengths.min())))
+        phmm = ParametricHMM(
+            n_states=n_states, covariance_type=self.covariance_type, reg_covar=self.reg_covar, n_iter=100,
+            tol=1e-3, random_state=0, covars_prior=covars_prior, covars_weight=self.covars_weight,
+        )
+        phmm.fit(np.concatenate(movements), lengths, (effects - centre) @ basis)
+        return ClassModel(int(cls.primitive_id), str(cls.kind), phmm, centre, basis)
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "classes_"):
+            raise NotFittedError("these ActionModels are not fitted; call fit(...) or ActionModels.load(directory)")
+
+    # ----------------------------------------------------------------------------- synthesis
+    def synthesize(self, class_id: int, phi: np.ndarray, n_frames: int | None = None) -> np.ndarray:
+        """Marker trajectory ``(T, M, 3)`` (m) of class ``class_id`` for the effect ``phi`` (6,): initial
+        and final location. Only the part of phi along the directions the class's demonstrations
+        varied in is used; a phi far outside them warns (ExtrapolationWarning)."""
+        model = self._class(class_id)
+        phi = _check_phi(phi)
+        X = model.phmm.synthesize(model.reduced_phi(phi), n_frames)
+        return X[:, : 3 * len(self.marker_names_)].reshape(len(X), -1, 3)
+
+    def _class(self, class_id: int) -> ClassModel:
+        self._check_fitted()
+        try:
+            return self.classes_[int(class_id)]
+        except (KeyError, TypeError, ValueError):
+            raise InvalidInputError(f"no class {class_id!r}; classes: {sorted(self.classes_)}") from None
+
+    # ---------------------------------------------------------------------------- recognition
+    def features(self, H: np.ndarray) -> np.ndarray:
+        """The model input of one movement's markers ``(T, M, 3)`` or ``(T, 3M)``, checked against the models."""
+        self._check_fitted()
+        H = np.asarray(H, dtype=float)
+        markers = len(self.marker_names_)
+        if H.ndim not in (2, 3) or H.reshape(len(H), -1).shape[1] != 3 * markers or len(H) < 1:
+            raise InvalidInputError(
+                f"a movement must be (T, {markers}, 3) or (T, {3 * markers}) marker positions "
+                f"({', '.join(self.marker_names_)}); got shape {H.shape}"
+            )
+        if not np.all(np.isfinite(H)):
+            raise InvalidInputError("a movement's markers must be finite (no NaN or inf)")
+        return marker_features(H, self.fps_, self.velocity)
+
+    def recognize(self, H: np.ndarray) -> SegmentRecognition:
+        """The class of one movement ``H`` (its markers), its phi (6,), and every class's log-likelihood."""
+        return self._recognize_features(self.features(H))
+
+    def _recognize_features(self, X: np.ndarray) -> SegmentRecognition:
+        phmms = {cid: model.phmm for cid, model in self.classes_.items()}
+        try:
+            rec = recognize(X, phmms, n_restarts=self.n_restarts)
+        except InvalidInputError:  # shorter than every chain: no class explains it
+            return SegmentRecognition(-1, np.full(EFFECT_DIM, np.nan), dict.fromkeys(phmms, -np.inf), {})
+        phis = {int(c): self.classes_[c].full_phi(p) for c, p in rec.phis.items() if np.all(np.isfinite(p))}
+        scores = {int(c): float(v) for c, v in rec.log_likelihoods.items()}
+        return SegmentRecognition(int(rec.label), phis[int(rec.label)], scores, phis)
+
+    def decode_segments(self, segments: Sequence[np.ndarray]) -> list[SegmentRecognition]:
+        """Recognise the consecutive pieces of one demonstration together, through the grammar.
+
+        Each piece is recognised on its own, then the grammar picks the class sequence that best
+        explains all of them (with the unexplained penalty and effect continuity); each returned
+        recognition carries the decoded class and that class's phi. A piece no class explains, or a
+        demonstration the strict grammar cannot parse, keeps its isolated class.
+        """
+        if isinstance(segments, np.ndarray) or not len(segments):
+            raise InvalidInputError("segments must be a non-empty list of movements, one (T, M, 3) array per piece")
+        recognitions = [self.recognize(piece) for piece in segments]
+        return self._decode(recognitions)
+
+    def _decode(self, recognitions: list[SegmentRecognition]) -> list[SegmentRecognition]:
+        scores = [dict(r.log_likelihoods) if r.class_id >= 0 else dict.fromkeys(self.classes_, 0.0) for r in recognitions]
+        pairs = None
+        if self.continuity_weight > 0 and len(recognitions) > 1:
+            pieces = {cid for cid, m in self.classes_.items() if m.kind == MANIPULATION}
+
+            def where(rec: SegmentRecognition, part: slice) -> dict:
+                return {c: phi[part] for c, phi in rec.phis.items() if c in pieces}
+
+            pairs = [effect_gap_scores(where(a, slice(3, 6)), where(b, slice(0, 3)), float(self.continuity_weight))
+                     for a, b in zip(recognitions, recognitions[1:])]
+        try:
+            labels, _ = self.grammar_.decode(scores, self.unexplained_penalty, pairs)
+        except InvalidInputError:  # the strict grammar cannot parse these pieces: keep the isolated classes
+            return recognitions
+        return [
+            SegmentRecognition(int(label), rec.phis.get(int(label), np.full(EFFECT_DIM, np.nan)),
+                               rec.log_likelihoods, rec.phis)
+            for label, rec in zip(labels, recognitions)
+        ]
+
+    # ----------------------------------------------------------------------------------- files
+    def save(self, directory: str | os.PathLike, overwrite: bool = False) -> Path:
+        """Write the models directory (:data:`MODELS_FILES` and ``class_<id>.npz``); all files appear
+        together once complete, and existing ones are replaced only with ``overwrite``."""
+        self._check_fitted()
+        names = [*MODELS_FILES, *(f"class_{cid}.npz" for cid in self.classes_)]
+        manifest = {
+            "format_version": FORMAT_VERSION,
+            "kind": KIND,
+            "params": self.get_params(),
+            "fps": self.fps_,
+            "marker_names": list(self.marker_names_),
+            "covars_prior": None if self.covars_prior_ is None else self.covars_prior_.tolist(),
+            "classes": [
+                {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
+                 "effect_basis": m.basis.tolist()}
+                for cid, m in self.classes_.items()
+            ],
+        }
+        with claimed_files(directory, names, overwrite, what="action models") as staging:
+            (staging / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+            self.discovery_.save(staging / "discovery.json")
+            self.grammar_.save(staging / "grammar.json")
+            for cid, model in self.classes_.items():
+                model.phmm.save(staging / f"class_{cid}.npz")
+        return Path(directory)
+
+    @classmethod
+    def load(cls, directory: str | os.PathLike) -> ActionModels:
+        """Read a models directory written by :meth:`save`; every file is validated, and a missing,
+        partial, other-version or inconsistent one raises DataFileError naming the file and entry."""
+        directory = Path(directory)
+        if not directory.is_dir():
+            raise DataFileError(f"no models directory at {directory}; make one with `hoap-actions learn`")
+        manifest_path = directory / MANIFEST
+        manifest = _read_manifest(manifest_path)
+        models = cls(**manifest["params"])
+        try:
+            models._check_params()
+        except InvalidInputError as exc:
+            raise DataFileError(f"{manifest_path}: entry params: {exc}") from None
+        models.fps_ = _positive(manifest_path, "fps", manifest["fps"])
+        models.marker_names_ = tuple(_strings(manifest_path, "marker_names", manifest["marker_names"]))
+        width = (2 if models.velocity else 1) * 3 * len(models.marker_names_)
+        prior = manifest["covars_prior"]
+        models.covars_prior_ = None if prior is None else _array(manifest_path, "covars_prior", prior, (width,))
+        models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
+        models.grammar_ = ActionGrammar.load(directory / "grammar.json")
+        classes = {}
+        for entry in manifest["classes"]:
+            where = f"{manifest_path}: entry classes[{entry.get('id')!r}]"
+            if not isinstance(entry, dict) or not isinstance(entry.get("id"), int) or entry.get("file") != f"class_{entry.get('id')}.npz":
+                raise DataFileError(f"{where} must hold an int id and its file class_<id>.npz")
+            centre = _array(manifest_path, f"classes[{entry['id']}].effect_centre", entry["effect_centre"], (EFFECT_DIM,))
+            basis = np.asarray(entry["effect_basis"], dtype=float)
+            if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
+                raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")
+            phmm = ParametricHMM.load(directory / entry["file"])
+            if phmm.mean_bar_.shape[1] != width or phmm.W_.shape[2] != basis.shape[1]:
+                raise DataFileError(
+                    f"{directory / entry['file']}: the model has {phmm.mean_bar_.shape[1]} features and "
+                    f"{phmm.W_.shape[2]} effect directions; the manifest says {width} and {basis.shape[1]}"
+                )
+            classes[entry["id"]] = ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis)
+        known = {c.primitive_id for c in models.discovery_.classes_}
+        if set(classes) != known or set(models.grammar_.symbols_) - set(classes):
+            raise DataFileError(
+                f"{manifest_path}: classes {sorted(classes)} do not match the discovery's {sorted(known)} "
+                "or the grammar's symbols"
+            )
+        models.classes_ = dict(sorted(classes.items()))
+        return models
+
+
+# ------------------------------------------------------------------------------------------ helpers
+def _split(H: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
+    H = np.asarray(H, dtype=float)
+    if H.ndim == 3:
+        H = H.reshape(len(H), -1)
+    if H.ndim != 2 or H.shape[1] % 3 or not np.all(np.isfinite(H)):
+        raise InvalidInputError(f"H must be finite markers (N, 3M) or (N, M, 3); got shape {np.shape(H)}")
+    lengths = np.asarray(lengths)
+    if lengths.ndim != 1 or not np.issubdtype(lengths.dtype, np.integer) or np.any(lengths < 1) or lengths.sum() != len(H):
+        raise InvalidInputError(f"lengths must be positive ints summing to len(H) = {len(H)}; got {lengths!r}")
+    return np.split(H, np.cumsum(lengths)[:-1])
+
+
+def _check_phi(phi: np.ndarray) -> np.ndarray:
+    phi = np.asarray(phi, dtype=float)
+    if phi.shape != (EFFECT_DIM,) or not np.all(np.isfinite(phi)):
+        raise InvalidInputError(f"phi must be 6 finite numbers, initial and final xyz (m); got {phi!r}")
+    return phi
+
+
+def _pooled_variances(models: list[ParametricHMM], frames: list[int], reg_covar: float) -> np.ndarray:
+    """Within-state variances (D,) pooled over classes, each weighted by its training frames."""
+    def variances(model: ParametricHMM) -> np.ndarray:
+        covars = model.covars_ if model.covariance_type == "diag" else np.diagonal(model.covars_, axis1=1, axis2=2)
+        return np.maximum((covars - reg_covar).mean(axis=0), 0.0) + reg_covar
+
+    total = float(sum(frames))
+    return sum(n / total * variances(m) for m, n in zip(models, frames))
+
+
+def _read_manifest(path: Path) -> dict:
+    try:
+        document = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataFileError(f"{path} is missing: a models directory holds {', '.join(MODELS_FILES)} and class_<id>.npz") from None
+    except (OSError, ValueError) as exc:
+        raise DataFileError(f"{path} is not a readable JSON manifest: {exc}") from None
+    if not isinstance(document, dict) or document.get("kind") != KIND:
+        raise DataFileError(f"{path} is not an {KIND} manifest (its kind is {document.get('kind') if isinstance(document, dict) else None!r})")
+    if document.get("format_version") != FORMAT_VERSION:
+        raise DataFileError(f"{path}: format_version {document.get('format_version')!r}; this code reads {FORMAT_VERSION}")
+    for key in ("params", "fps", "marker_names", "covars_prior", "classes"):
+        if key not in document:
+            raise DataFileError(f"{path}: entry {key} is missing")
+    if not isinstance(document["params"], dict) or not isinstance(document["classes"], list) or not document["classes"]:
+        raise DataFileError(f"{path}: params must be an object and classes a non-empty list")
+    return document
+
+
+def _positive(path: Path, name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
+        raise DataFileError(f"{path}: entry {name} must be a positive number; got {value!r}")
+    return float(value)
+
+
+def _strings(path: Path, name: str, value: object) -> list[str]:
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise DataFileError(f"{path}: entry {name} must be a non-empty list of names; got {value!r}")
+    return value
+
+
+def _array(path: Path, name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise DataFileError(f"{path}: entry {name} is not numeric") from None
+    if array.shape != shape or not np.all(np.isfinite(array)):
+        raise DataFileError(f"{path}: entry {name} must be {shape} finite numbers; got shape {array.shape}")
+    return array

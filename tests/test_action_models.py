@@ -1,0 +1,166 @@
+"""ActionModels: learning from discovered classes, recognition, grammar decoding, synthesis, the models directory."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from hoap_actions.errors import DataExistsError, DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
+from hoap_actions.primitives.action_models import MANIFEST, ActionModels, marker_features
+from hoap_actions.primitives.datasets import load_demonstrations
+from hoap_actions.primitives.discovery import PrimitiveDiscovery
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    """The ``small`` preset (push, move, rotate, approach), its discovery, and models fitted on it."""
+    from hoap_actions.envs.recording import record
+
+    demos = load_demonstrations(record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False))
+    discovery = PrimitiveDiscovery().fit([e.O for e in demos], [e.H.reshape(e.T, -1) for e in demos])
+    H = np.concatenate([e.H for e in demos])
+    models = ActionModels().fit(H, [e.T for e in demos], discovery, demos.fps, demos.marker_names)
+    return demos, discovery, models
+
+
+def pieces_of(demos, discovery, demo):
+    return [demos[demo].H[start:end] for _, start, end in discovery.segmentations_[demo]]
+
+
+def test_one_model_per_discovered_class_and_the_grammar_of_their_order(small):
+    demos, discovery, models = small
+    assert sorted(models.classes_) == sorted(c.primitive_id for c in discovery.classes_)
+    assert {m.kind for m in models.classes_.values()} == {"approach", "manipulation", "remove"}
+    for sequence in discovery.segmentations_:
+        assert models.grammar_.is_grammatical([pid for pid, *_ in sequence])
+
+
+def test_training_pieces_are_recognised_as_their_class_alone_and_through_the_grammar(small):
+    demos, discovery, models = small
+    for demo, segmentation in enumerate(discovery.segmentations_):
+        truth = [pid for pid, *_ in segmentation]
+        pieces = pieces_of(demos, discovery, demo)
+        assert [models.recognize(p).class_id for p in pieces] == truth
+        assert [r.class_id for r in models.decode_segments(pieces)] == truth
+
+
+def modelled(models, class_id, phi):
+    """The part of ``phi`` a class's PHMM represents: its projection on the class's effect directions
+    (few training segments give few directions)."""
+    model = models.classes_[class_id]
+    return model.full_phi(model.reduced_phi(phi))
+
+
+def test_recognised_phi_is_the_segments_effect(small):
+    """On a training piece, the estimated (initial, final) location is the one discovery measured."""
+    demos, discovery, models = small
+    for cls in discovery.classes_:
+        for segment in cls.segments:
+            rec = models.recognize(demos[segment.demo].H[segment.start:segment.end])
+            assert rec.class_id == cls.primitive_id
+            assert np.abs(rec.phi - modelled(models, cls.primitive_id, segment.effect)).max() < 0.01  # m
+
+
+def test_synthesized_movement_of_a_class_follows_its_demonstration(small):
+    demos, discovery, models = small
+    approach = next(c for c in discovery.classes_ if c.kind == "approach")
+    segment = approach.segments[0]
+    phi = modelled(models, approach.primitive_id, segment.effect)
+    made = models.synthesize(approach.primitive_id, phi)
+    assert made.shape[1:] == (6, 3)
+    hand = discovery.hand_marker
+    # the synthesised hand starts and ends at the effect's locations (within 1 cm) and lasts as long
+    # as the class's demonstrations do on average
+    assert np.linalg.norm(made[0, hand] - phi[:3]) < 0.01
+    assert np.linalg.norm(made[-1, hand] - phi[3:]) < 0.01
+    mean_frames = np.mean([s.end - s.start for s in approach.segments])
+    assert abs(len(made) - mean_frames) <= 0.1 * mean_frames
+
+
+def test_marker_features_append_the_displacement_over_a_tenth_of_a_second():
+    t = np.arange(50)[:, None, None] * np.ones((1, 6, 3))
+    H = 0.01 * t  # every coordinate moves 1 cm per frame
+    X = marker_features(H, fps=100.0)
+    assert X.shape == (50, 36)
+    np.testing.assert_allclose(X[:, 18:], 0.1)  # 10 frames of 1 cm
+    np.testing.assert_array_equal(marker_features(H, 100.0, velocity=False), H.reshape(50, 18))
+
+
+def test_save_and_load_give_the_same_recognitions(small, tmp_path):
+    demos, discovery, models = small
+    path = models.save(tmp_path / "models")
+    loaded = ActionModels.load(path)
+    assert loaded.get_params() == models.get_params()
+    piece = pieces_of(demos, discovery, 1)[1]
+    a, b = models.recognize(piece), loaded.recognize(piece)
+    assert a.class_id == b.class_id and a.log_likelihoods == b.log_likelihoods
+    np.testing.assert_array_equal(a.phi, b.phi)
+    with pytest.raises(DataExistsError):
+        models.save(path)
+
+
+@pytest.fixture
+def saved(small, tmp_path):
+    path = small[2].save(tmp_path / "models")
+    return path
+
+
+def edit_manifest(path, change):
+    manifest = json.loads((path / MANIFEST).read_text())
+    change(manifest)
+    (path / MANIFEST).write_text(json.dumps(manifest))
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda p: shutil.rmtree(p), "no models directory"),
+        (lambda p: (p / MANIFEST).unlink(), "manifest.json is missing"),
+        (lambda p: (p / "class_1.npz").unlink(), "class_1.npz does not exist"),
+        (lambda p: (p / "grammar.json").unlink(), "grammar"),
+        (lambda p: edit_manifest(p, lambda m: m.update(format_version=99)), "format_version 99"),
+        (lambda p: edit_manifest(p, lambda m: m.update(fps=-1)), "entry fps must be a positive number"),
+        (lambda p: edit_manifest(p, lambda m: m["params"].update(state_fraction=7)), "entry params: state_fraction"),
+        (lambda p: edit_manifest(p, lambda m: m["classes"].pop()), "do not match the discovery"),
+        (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(effect_centre=[0, 1])), "effect_centre must be"),
+        (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(effect_basis=[[0.0]] * 6)), "effect directions"),
+        (lambda p: (p / MANIFEST).write_text("{nonsense"), "not a readable JSON manifest"),
+    ],
+    ids=["missing-dir", "no-manifest", "missing-class", "no-grammar", "other-version", "bad-fps", "bad-params",
+         "class-dropped", "bad-centre", "basis-mismatch", "not-json"],
+)
+def test_load_rejects_missing_partial_other_version_and_edited_directories(saved, damage, message):
+    damage(saved)
+    with pytest.raises(DataFileError, match=message):
+        ActionModels.load(saved)
+
+
+def test_bad_inputs_name_what_is_accepted(small):
+    demos, discovery, models = small
+    with pytest.raises(InvalidInputError, match="phi must be 6 finite numbers"):
+        models.synthesize(0, np.zeros(3))
+    with pytest.raises(InvalidInputError, match="phi must be 6 finite numbers"):
+        models.synthesize(0, np.full(6, np.nan))
+    with pytest.raises(InvalidInputError, match=r"no class 99; classes: \[0, 1"):
+        models.synthesize(99, np.zeros(6))
+    with pytest.raises(InvalidInputError, match=r"a movement must be \(T, 6, 3\)"):
+        models.recognize(np.zeros((40, 5, 3)))
+    with pytest.raises(InvalidInputError, match="finite"):
+        models.recognize(np.full((40, 6, 3), np.nan))
+    with pytest.raises(NotFittedError, match="not fitted"):
+        ActionModels().recognize(np.zeros((40, 6, 3)))
+    with pytest.raises(InvalidInputError, match="state_fraction must be a number in"):
+        ActionModels(state_fraction=0).fit(np.zeros((10, 18)), [10], discovery, 100.0)
+    with pytest.raises(InvalidInputError, match="discovery was fitted on 4 demonstrations but H holds 1"):
+        ActionModels().fit(np.zeros((10, 18)), [10], discovery, 100.0)
+
+
+def test_phi_far_outside_the_demonstrations_warns(small):
+    demos, discovery, models = small
+    approach = next(c for c in discovery.classes_ if c.kind == "approach")
+    far = approach.segments[0].effect + np.array([10.0, 10.0, 0.0, 10.0, 10.0, 0.0])  # 14 m away
+    with pytest.warns(ExtrapolationWarning):
+        models.synthesize(approach.primitive_id, far)
