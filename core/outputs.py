@@ -38,7 +38,7 @@ logger = logging.getLogger(__name__)
 
 PARTIAL_MARK = ".hoap-partial"
 
-__all__ = ["PARTIAL_MARK", "check_output_path", "claimed_file", "claimed_files"]
+__all__ = ["PARTIAL_MARK", "check_output_path", "claimed_directory", "claimed_file", "claimed_files"]
 
 
 def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
@@ -241,3 +241,45 @@ def claimed_files(
         if created:
             with contextlib.suppress(OSError):
                 folder.rmdir()  # only succeeds if this run left it empty
+
+
+@contextlib.contextmanager
+def claimed_directory(path: str | os.PathLike, overwrite: bool = False, what: str = "directory") -> Iterator[Path]:
+    """Claim the directory ``path`` as a whole (e.g. a models directory, whose file names depend on
+    what was learned): yields an empty staging folder beside it, which replaces ``path`` in one rename
+    on success.
+
+    The same checks as :func:`claimed_file`; without ``overwrite`` an existing ``path`` is refused, with
+    it the old directory is removed only once the new one is in place.
+    """
+    if not str(path).strip():
+        raise InvalidInputError(f"the {what} path is empty; give a folder such as out/{what.replace(' ', '-')}")
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InvalidInputError(f"{path} exists and is not a directory; the {what} need a folder of their own")
+    if path.name in ("", ".", ".."):
+        raise InvalidInputError(f"the {what} path {path} does not name a folder")
+    _make_folder(path.parent, what)
+    claim = _Claim(path, path.with_name(f".{path.name}{PARTIAL_MARK}"), folder=True, what=what)
+    try:
+        if path.exists() and not overwrite:
+            _refuse_existing(path, what)
+        _sweep_stale_partials(path.parent, keep=claim.partial)
+        for leftover in claim.partial.iterdir():  # a killed run's files: start afresh
+            shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
+        yield claim.partial
+        if path.exists() and overwrite:
+            old = path.with_name(f".{path.name}.hoap-replaced-{os.getpid()}")
+            os.rename(path, old)
+            os.rename(claim.partial, path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            try:
+                os.rename(claim.partial, path)
+            except OSError as exc:
+                if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
+                    _refuse_existing(path, what)
+                raise
+    finally:
+        claim.discard()
+        claim.release()

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.outputs import claimed_files
+from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
 from hoap_actions.primitives.effect_continuity import effect_gap_scores
 from hoap_actions.primitives.grammar import ActionGrammar
@@ -226,11 +226,11 @@ class ActionModels:
         return self
 
     def _fit_class(self, cls, inputs: list[np.ndarray], covars_prior: np.ndarray | None) -> ClassModel:
-        effects = cls.effects
-        centre = effects.mean(axis=0)
-        _, singular, vt = np.linalg.svd(effects - centre, full_matrices=False)
-        spread = singular / np.sqrt(len(effects))
-        rank = int(min(np.sum(spread > self.effect_tol), max(len(effects) - 2, 0)))
+        phis = cls.phis
+        centre = phis.mean(axis=0)
+        _, singular, vt = np.linalg.svd(phis - centre, full_matrices=False)
+        spread = singular / np.sqrt(len(phis))
+        rank = int(min(np.sum(spread > self.effect_tol), max(len(phis) - 2, 0)))
         basis = vt[:rank].T
         movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
         lengths = np.array([len(m) for m in movements])
@@ -239,7 +239,7 @@ class ActionModels:
             n_states=n_states, covariance_type=self.covariance_type, reg_covar=self.reg_covar, n_iter=100,
             tol=1e-3, random_state=0, covars_prior=covars_prior, covars_weight=self.covars_weight,
         )
-        phmm.fit(np.concatenate(movements), lengths, (effects - centre) @ basis)
+        phmm.fit(np.concatenate(movements), lengths, (phis - centre) @ basis)
         return ClassModel(int(cls.primitive_id), str(cls.kind), phmm, centre, basis)
 
     def _check_fitted(self) -> None:
@@ -328,10 +328,18 @@ class ActionModels:
 
     # ----------------------------------------------------------------------------------- files
     def save(self, directory: str | os.PathLike, overwrite: bool = False) -> Path:
-        """Write the models directory (:data:`MODELS_FILES` and ``class_<id>.npz``); all files appear
-        together once complete, and existing ones are replaced only with ``overwrite``."""
+        """Write the models directory (:data:`MODELS_FILES` and ``class_<id>.npz``); it appears whole
+        once complete, and an existing one is replaced only with ``overwrite``."""
         self._check_fitted()
-        names = [*MODELS_FILES, *(f"class_{cid}.npz" for cid in self.classes_)]
+        with claimed_directory(directory, overwrite, what="action models") as staging:
+            self.write_files(staging)
+        return Path(directory)
+
+    def write_files(self, folder: Path) -> None:
+        """Write the models' files into ``folder``, an empty directory the caller has claimed
+        (:func:`hoap_actions.outputs.claimed_directory`); use :meth:`save` otherwise."""
+        self._check_fitted()
+        folder = Path(folder)
         manifest = {
             "format_version": FORMAT_VERSION,
             "kind": KIND,
@@ -345,13 +353,11 @@ class ActionModels:
                 for cid, m in self.classes_.items()
             ],
         }
-        with claimed_files(directory, names, overwrite, what="action models") as staging:
-            (staging / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
-            self.discovery_.save(staging / "discovery.json")
-            self.grammar_.save(staging / "grammar.json")
-            for cid, model in self.classes_.items():
-                model.phmm.save(staging / f"class_{cid}.npz")
-        return Path(directory)
+        (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+        self.discovery_.save(folder / "discovery.json")
+        self.grammar_.save(folder / "grammar.json")
+        for cid, model in self.classes_.items():
+            model.phmm.save(folder / f"class_{cid}.npz")
 
     @classmethod
     def load(cls, directory: str | os.PathLike) -> ActionModels:

@@ -20,9 +20,10 @@ def small(tmp_path_factory):
     from hoap_actions.envs.recording import record
 
     demos = load_demonstrations(record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False))
-    discovery = PrimitiveDiscovery().fit([e.O for e in demos], [e.H.reshape(e.T, -1) for e in demos])
-    H = np.concatenate([e.H for e in demos])
-    models = ActionModels().fit(H, [e.T for e in demos], discovery, demos.fps, demos.marker_names)
+    lengths = [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in demos]), lengths, H)
+    models = ActionModels().fit(H, lengths, discovery, demos.fps, demos.marker_names)
     return demos, discovery, models
 
 
@@ -61,14 +62,14 @@ def test_recognised_phi_is_the_segments_effect(small):
         for segment in cls.segments:
             rec = models.recognize(demos[segment.demo].H[segment.start:segment.end])
             assert rec.class_id == cls.primitive_id
-            assert np.abs(rec.phi - modelled(models, cls.primitive_id, segment.effect)).max() < 0.01  # m
+            assert np.abs(rec.phi - modelled(models, cls.primitive_id, segment.phi)).max() < 0.01  # m
 
 
 def test_synthesized_movement_of_a_class_follows_its_demonstration(small):
     demos, discovery, models = small
     approach = next(c for c in discovery.classes_ if c.kind == "approach")
     segment = approach.segments[0]
-    phi = modelled(models, approach.primitive_id, segment.effect)
+    phi = modelled(models, approach.primitive_id, segment.phi)
     made = models.synthesize(approach.primitive_id, phi)
     assert made.shape[1:] == (6, 3)
     hand = discovery.hand_marker
@@ -161,6 +162,6 @@ def test_bad_inputs_name_what_is_accepted(small):
 def test_phi_far_outside_the_demonstrations_warns(small):
     demos, discovery, models = small
     approach = next(c for c in discovery.classes_ if c.kind == "approach")
-    far = approach.segments[0].effect + np.array([10.0, 10.0, 0.0, 10.0, 10.0, 0.0])  # 14 m away
+    far = approach.segments[0].phi + np.array([10.0, 10.0, 0.0, 10.0, 10.0, 0.0])  # 14 m away
     with pytest.warns(ExtrapolationWarning):
         models.synthesize(approach.primitive_id, far)
