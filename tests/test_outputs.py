@@ -1,0 +1,84 @@
+"""hoap_actions.outputs: claims that check before the work and publish whole, or not at all."""
+
+from __future__ import annotations
+
+import pytest
+
+from hoap_actions.errors import DataExistsError, InvalidInputError
+from hoap_actions.outputs import PARTIAL_MARK, claimed_directory, claimed_file
+
+
+def test_claimed_file_publishes_on_success_and_keeps_the_suffix_for_format_sniffing(tmp_path):
+    with claimed_file(tmp_path / "video.mp4") as partial:
+        assert partial.suffix == ".mp4" and PARTIAL_MARK in partial.name
+        partial.write_text("frames")
+    assert (tmp_path / "video.mp4").read_text() == "frames"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["video.mp4"]
+
+
+def test_claimed_file_overwrites_only_when_asked(tmp_path):
+    target = tmp_path / "report.json"
+    target.write_text("old")
+    with pytest.raises(DataExistsError, match="already exists"):
+        with claimed_file(target):
+            raise AssertionError("the job must not start")
+    with claimed_file(target, overwrite=True) as partial:
+        partial.write_text("new")
+    assert target.read_text() == "new"
+
+
+def test_a_failed_job_leaves_the_previous_file_and_no_partial(tmp_path):
+    target = tmp_path / "report.json"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with claimed_file(target, overwrite=True) as partial:
+            partial.write_text("half")
+            raise RuntimeError("crash")
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"] and target.read_text() == "old"
+
+
+def test_claimed_directory_is_published_whole_and_replaced_whole(tmp_path):
+    target = tmp_path / "models"
+    with claimed_directory(target) as staging:
+        (staging / "a.npz").write_text("1")
+        (staging / "b.npz").write_text("1")
+    assert sorted(p.name for p in target.iterdir()) == ["a.npz", "b.npz"]
+    with pytest.raises(DataExistsError, match="already exists"):
+        with claimed_directory(target):
+            raise AssertionError("the job must not start")
+    with pytest.raises(RuntimeError):  # a failed replacement keeps the old directory
+        with claimed_directory(target, overwrite=True) as staging:
+            (staging / "c.npz").write_text("2")
+            raise RuntimeError("crash")
+    assert sorted(p.name for p in target.iterdir()) == ["a.npz", "b.npz"]
+    with claimed_directory(target, overwrite=True) as staging:
+        (staging / "c.npz").write_text("2")
+    assert sorted(p.name for p in target.iterdir()) == ["c.npz"]  # no stale file of the old models
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["models"]
+
+
+def test_claimed_directory_refuses_a_second_writer(tmp_path):
+    with claimed_directory(tmp_path / "models") as staging:
+        with pytest.raises(DataExistsError, match="another process is writing"):
+            with claimed_directory(tmp_path / "models"):
+                raise AssertionError("the second job must not start")
+        (staging / "a.npz").write_text("1")
+    assert [p.name for p in (tmp_path / "models").iterdir()] == ["a.npz"]
+
+
+def test_claimed_directory_never_merges_into_a_folder_that_appeared_meanwhile(tmp_path):
+    with pytest.raises(DataExistsError, match="already exists"):
+        with claimed_directory(tmp_path / "models") as staging:
+            (staging / "ours.npz").write_text("1")
+            (tmp_path / "models").mkdir()
+            (tmp_path / "models" / "theirs.txt").write_text("2")
+    assert [p.name for p in (tmp_path / "models").iterdir()] == ["theirs.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["models"]
+
+
+@pytest.mark.parametrize("path", ["", "file.txt"])
+def test_claimed_directory_needs_a_folder_path(tmp_path, path):
+    (tmp_path / "file.txt").write_text("x")
+    with pytest.raises(InvalidInputError):
+        with claimed_directory(tmp_path / path if path else path):
+            raise AssertionError("the job must not start")
