@@ -1,4 +1,4 @@
-"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives.
+"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives, learn models.
 
 Every argument and output path is checked before the long work starts; a mistake is one line on
 stderr and exit status 2, with no traceback. Outputs are claimed at the start
@@ -110,11 +110,19 @@ def _record(args: argparse.Namespace) -> int:
 
 
 def _discover(args: argparse.Namespace) -> int:
-    from hoap_actions.primitives.discovery_report import discover_to_dir
+    from hoap_actions.primitives.discovery_files import discover_to_dir
 
     summary = discover_to_dir(
         args.demos, args.out, threshold=args.threshold, spacing=args.spacing, overwrite=args.overwrite
     )
+    print(summary.report())
+    return 0
+
+
+def _learn(args: argparse.Namespace) -> int:
+    from hoap_actions.primitives.learning import learn_to_dir
+
+    summary = learn_to_dir(args.demos, args.out, discovery_dir=args.discovery, overwrite=args.overwrite, progress=True)
     print(summary.report())
     return 0
 
@@ -152,6 +160,14 @@ def build_parser() -> argparse.ArgumentParser:
     disc.add_argument("--spacing", type=float, help="arc length per Gaussian, m (default: the tuned one)")
     disc.add_argument("--overwrite", action="store_true", help="replace previous results in --out")
     disc.set_defaults(func=_discover)
+
+    learn = sub.add_parser("learn", help="learn one parametric HMM per discovered primitive class, and the grammar")
+    learn.add_argument("--demos", type=_path, nargs="+", required=True, help="demonstrations datasets (.h5, from `record`)")
+    learn.add_argument("--out", type=_path, required=True, help="models directory to write")
+    learn.add_argument("--discovery", type=_path,
+                       help="a `discover` folder fitted on the same --demos (default: run discovery here)")
+    learn.add_argument("--overwrite", action="store_true", help="replace an existing models directory at --out")
+    learn.set_defaults(func=_learn)
     return parser
 
 

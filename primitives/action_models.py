@@ -42,11 +42,13 @@ import json
 import logging
 import math
 import os
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
 from hoap_actions.outputs import claimed_directory
@@ -192,12 +194,14 @@ class ActionModels:
         discovery: PrimitiveDiscovery,
         fps: float,
         marker_names: Sequence[str] | None = None,
+        progress: bool = False,
     ) -> ActionModels:
         """Fit one PHMM per class of ``discovery`` and the grammar of its segmentations.
 
         ``H`` are the demonstrations' arm markers, concatenated ``(N, 18)`` or ``(N, 6, 3)`` (m), with
         ``lengths`` frames each, recorded at ``fps``; ``discovery`` was fitted on the same
-        demonstrations in the same order (its segments index them).
+        demonstrations in the same order (its segments index them). ``progress`` shows a bar over
+        the class fits when stderr is a terminal.
         """
         self._check_params()
         hands = _split(H, lengths)
@@ -213,13 +217,23 @@ class ActionModels:
         self.fps_ = float(fps)
         self.marker_names_ = tuple(marker_names) if marker_names is not None else tuple(f"marker_{i}" for i in range(hands[0].shape[1] // 3))
         inputs = [marker_features(h, self.fps_, self.velocity) for h in hands]
-        fitted = {c.primitive_id: self._fit_class(c, inputs, None) for c in discovery.classes_}
         pieces = [c for c in discovery.classes_ if c.kind == MANIPULATION]
-        self.covars_prior_ = None
-        if self.covars_weight > 0 and pieces:  # the first fit's variances make the pooled prior
-            frames = [sum(s.end - s.start for s in c.segments) for c in pieces]
-            self.covars_prior_ = _pooled_variances([fitted[c.primitive_id].phmm for c in pieces], frames, self.reg_covar)
-            fitted.update({c.primitive_id: self._fit_class(c, inputs, self.covars_prior_) for c in pieces})
+        refit = self.covars_weight > 0 and bool(pieces)
+        bar = tqdm(total=len(discovery.classes_) + (len(pieces) if refit else 0), desc="fitting class PHMMs",
+                   unit="class", disable=not (progress and sys.stderr.isatty()))
+        with bar:
+            fitted = {}
+            for c in discovery.classes_:
+                fitted[c.primitive_id] = self._fit_class(c, inputs, None)
+                bar.update()
+            self.covars_prior_ = None
+            if refit:  # the first fit's variances make the pooled prior
+                frames = [sum(s.end - s.start for s in c.segments) for c in pieces]
+                self.covars_prior_ = _pooled_variances([fitted[c.primitive_id].phmm for c in pieces], frames,
+                                                       self.reg_covar)
+                for c in pieces:
+                    fitted[c.primitive_id] = self._fit_class(c, inputs, self.covars_prior_)
+                    bar.update()
         self.classes_ = {int(cid): fitted[cid] for cid in sorted(fitted)}
         self.grammar_ = ActionGrammar(0.0).fit([[int(pid) for pid, *_ in seg] for seg in discovery.segmentations_])
         self.discovery_ = discovery

@@ -8,6 +8,7 @@ import shutil
 import numpy as np
 import pytest
 
+from hoap_actions.cli import main
 from hoap_actions.errors import DataExistsError, DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
 from hoap_actions.primitives.action_models import MANIFEST, ActionModels, marker_features
 from hoap_actions.primitives.datasets import load_demonstrations
@@ -19,12 +20,13 @@ def small(tmp_path_factory):
     """The ``small`` preset (push, move, rotate, approach), its discovery, and models fitted on it."""
     from hoap_actions.envs.recording import record
 
-    demos = load_demonstrations(record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False))
+    path = record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
+    demos = load_demonstrations(path)
     lengths = [e.T for e in demos]
     H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
     discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in demos]), lengths, H)
     models = ActionModels().fit(H, lengths, discovery, demos.fps, demos.marker_names)
-    return demos, discovery, models
+    return demos, discovery, models, path
 
 
 def pieces_of(demos, discovery, demo):
@@ -32,7 +34,7 @@ def pieces_of(demos, discovery, demo):
 
 
 def test_one_model_per_discovered_class_and_the_grammar_of_their_order(small):
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     assert sorted(models.classes_) == sorted(c.primitive_id for c in discovery.classes_)
     assert {m.kind for m in models.classes_.values()} == {"approach", "manipulation", "remove"}
     for sequence in discovery.segmentations_:
@@ -40,7 +42,7 @@ def test_one_model_per_discovered_class_and_the_grammar_of_their_order(small):
 
 
 def test_training_pieces_are_recognised_as_their_class_alone_and_through_the_grammar(small):
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     for demo, segmentation in enumerate(discovery.segmentations_):
         truth = [pid for pid, *_ in segmentation]
         pieces = pieces_of(demos, discovery, demo)
@@ -57,7 +59,7 @@ def modelled(models, class_id, phi):
 
 def test_recognised_phi_is_the_segments_effect(small):
     """On a training piece, the estimated (initial, final) location is the one discovery measured."""
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     for cls in discovery.classes_:
         for segment in cls.segments:
             rec = models.recognize(demos[segment.demo].H[segment.start:segment.end])
@@ -66,7 +68,7 @@ def test_recognised_phi_is_the_segments_effect(small):
 
 
 def test_synthesized_movement_of_a_class_follows_its_demonstration(small):
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     approach = next(c for c in discovery.classes_ if c.kind == "approach")
     segment = approach.segments[0]
     phi = modelled(models, approach.primitive_id, segment.phi)
@@ -91,7 +93,7 @@ def test_marker_features_append_the_displacement_over_a_tenth_of_a_second():
 
 
 def test_save_and_load_give_the_same_recognitions(small, tmp_path):
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     path = models.save(tmp_path / "models")
     loaded = ActionModels.load(path)
     assert loaded.get_params() == models.get_params()
@@ -140,7 +142,7 @@ def test_load_rejects_missing_partial_other_version_and_edited_directories(saved
 
 
 def test_bad_inputs_name_what_is_accepted(small):
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     with pytest.raises(InvalidInputError, match="phi must be 6 finite numbers"):
         models.synthesize(0, np.zeros(3))
     with pytest.raises(InvalidInputError, match="phi must be 6 finite numbers"):
@@ -160,8 +162,31 @@ def test_bad_inputs_name_what_is_accepted(small):
 
 
 def test_phi_far_outside_the_demonstrations_warns(small):
-    demos, discovery, models = small
+    demos, discovery, models, _ = small
     approach = next(c for c in discovery.classes_ if c.kind == "approach")
     far = approach.segments[0].phi + np.array([10.0, 10.0, 0.0, 10.0, 10.0, 0.0])  # 14 m away
     with pytest.warns(ExtrapolationWarning):
         models.synthesize(approach.primitive_id, far)
+
+
+def test_learn_command_writes_the_models_directory_and_refuses_to_replace_it(small, tmp_path, capsys):
+    demos, discovery, models, path = small
+    out = tmp_path / "models"
+    assert main(["learn", "--demos", str(path), "--out", str(out)]) == 0
+    assert "5 classes" in capsys.readouterr().out
+    learned = ActionModels.load(out)
+    assert sorted(learned.classes_) == sorted(models.classes_)
+    piece = pieces_of(demos, discovery, 0)[1]
+    assert learned.recognize(piece).log_likelihoods == models.recognize(piece).log_likelihoods  # same fit
+    assert main(["learn", "--demos", str(path), "--out", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
+
+
+def test_learn_command_takes_a_discover_folder_only_of_the_same_demonstrations(small, tmp_path, capsys):
+    _, _, _, path = small
+    assert main(["discover", "--demos", str(path), "--out", str(tmp_path / "found")]) == 0
+    assert main(["learn", "--demos", str(path), "--out", str(tmp_path / "m"), "--discovery", str(tmp_path / "found")]) == 0
+    assert main(["learn", "--demos", str(path), str(path), "--out", str(tmp_path / "m2"),
+                 "--discovery", str(tmp_path / "found")]) == 2
+    assert "fitted on 4 demonstrations, not on these 8" in capsys.readouterr().err
+    assert not (tmp_path / "m2").exists()
