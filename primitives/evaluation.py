@@ -26,6 +26,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.labels import runs
 
 Labels = np.ndarray | Sequence[np.ndarray] | Sequence[Hashable]
 _UNMATCHED = object()  # what an unmapped predicted label becomes: equal to no true label
@@ -93,8 +94,8 @@ def edit_score(pred_labels: Labels, true_labels: Labels, mapping: dict | None = 
     pred, true = _paired(pred_labels, true_labels)
     scores = []
     for p, t in zip(pred, true):
-        p_segments = [x if mapping is None else mapping.get(x, _UNMATCHED) for x in _segment_labels(p)]
-        t_segments = _segment_labels(t)
+        p_segments = [x if mapping is None else mapping.get(x, _UNMATCHED) for x, _, _ in runs(p)]
+        t_segments = [x for x, _, _ in runs(t)]
         longest = max(len(p_segments), len(t_segments))
         scores.append(1.0 if longest == 0 else 1.0 - levenshtein(p_segments, t_segments) / longest)
     return float(np.mean(scores))
@@ -149,17 +150,9 @@ def levenshtein(a: Sequence[Hashable], b: Sequence[Hashable]) -> int:
     return int(row[-1])
 
 
-def _segment_labels(labels: np.ndarray) -> list[Hashable]:
-    """The label of each run of equal labels, in order."""
-    if len(labels) == 0:
-        return []
-    starts = np.concatenate([[0], _boundaries(labels)])
-    return [labels[s].item() for s in starts]
-
-
-def _boundaries(labels: np.ndarray) -> np.ndarray:
-    """Frames whose label differs from the previous frame's."""
-    return np.flatnonzero(labels[1:] != labels[:-1]) + 1
+def _boundaries(labels: np.ndarray) -> list[int]:
+    """Frames whose label differs from the previous frame's: where every run but the first starts."""
+    return [start for _, start, _ in runs(labels)[1:]]
 
 
 def _as_list(labels: Labels, name: str) -> list[np.ndarray]:
