@@ -45,15 +45,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def evaluate(path: Path, spacing: float | None, threshold: float | None) -> dict:
     """Fit on one dataset, time it and evaluate it."""
     from hoap_actions.primitives.datasets import load_demonstrations
+    import numpy as np
+
     from hoap_actions.primitives.discovery import PrimitiveDiscovery
-    from hoap_actions.primitives.discovery_report import evaluate_discovery
+    from hoap_actions.primitives.discovery_evaluation import evaluate_discovery
 
     demos = load_demonstrations(path)
     params = {k: v for k, v in (("spacing", spacing), ("threshold", threshold)) if v is not None}
     model = PrimitiveDiscovery(**params)
-    objects, hands = [e.O for e in demos], [e.H.reshape(e.T, -1) for e in demos]
+    X, lengths = np.concatenate([e.O for e in demos]), [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
     started, cpu = time.perf_counter(), time.process_time()
-    model.fit(objects, hands)
+    model.fit(X, lengths, H)
     wall, cpu = time.perf_counter() - started, time.process_time() - cpu
     result = evaluate_discovery(model, demos)
     return {

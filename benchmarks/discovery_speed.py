@@ -38,8 +38,8 @@ STAGES = {  # report name: (module file, function names whose cumulative time it
     "cut into rest / motion pieces": ("discovery.py", ("_prepare",)),
     "state merging (KL, eqs. 1-3)": ("discovery.py", ("_build_joint_hmm",)),
     "Gaussian densities": ("hmm_math.py", ("log_gaussian_density",)),
-    "Viterbi (sparse)": ("discovery.py", ("sparse_viterbi",)),
-    "LCS (find_primitives)": ("discovery.py", ("find_primitives",)),
+    "Viterbi (sparse)": ("sparse_viterbi.py", ("sparse_viterbi",)),
+    "LCS (find_primitives)": ("substrings.py", ("find_primitives",)),
     "segments and classes": ("discovery.py", ("_assign_primitives", "_make_classes")),
 }
 
@@ -78,19 +78,22 @@ def stage_times(profile: cProfile.Profile) -> dict[str, float]:
 
 def time_fit(objects: list, hands: list, repeats: int) -> dict:
     """Best wall / CPU time of ``fit`` over ``repeats``, the fitted model's size, and a profiled breakdown."""
+    import numpy as np
+
     from hoap_actions.primitives.discovery import PrimitiveDiscovery
 
+    X, lengths, H = np.concatenate(objects), [len(o) for o in objects], np.concatenate(hands)
     walls, cpus = [], []
     for _ in range(repeats):
         model = PrimitiveDiscovery()
         started, cpu = time.perf_counter(), time.process_time()
-        model.fit(objects, hands)
+        model.fit(X, lengths, H)
         walls.append(time.perf_counter() - started)
         cpus.append(time.process_time() - cpu)
     profile = cProfile.Profile()
     profile.enable()
     started = time.perf_counter()
-    PrimitiveDiscovery().fit(objects, hands)
+    PrimitiveDiscovery().fit(X, lengths, H)
     profiled = time.perf_counter() - started
     profile.disable()
     stages = stage_times(profile)
@@ -114,9 +117,9 @@ def viterbi_comparison(model, objects: list) -> dict:
     import numpy as np
 
     from hoap_actions.primitives import hmm_math
-    from hoap_actions.primitives.discovery import sparse_viterbi
+    from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
 
-    relative = model.relative_trajectories(objects)
+    relative = model.relative_trajectories(np.concatenate(objects), [len(o) for o in objects])
     X, lengths = np.concatenate(relative), np.array([len(r) for r in relative])
     log_frameprob = hmm_math.log_gaussian_density(X, model.joint_means_, model.joint_covars_)
     with np.errstate(divide="ignore"):

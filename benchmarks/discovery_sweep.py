@@ -55,14 +55,15 @@ def sweep(path: Path, spacings: list[float], thresholds: list[float]) -> list[di
     """Fit and evaluate every grid cell on one dataset."""
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.discovery import PrimitiveDiscovery
-    from hoap_actions.primitives.discovery_report import evaluate_discovery
+    from hoap_actions.primitives.discovery_evaluation import evaluate_discovery
 
     demos = load_demonstrations(path)
-    objects, hands = [e.O for e in demos], [e.H.reshape(e.T, -1) for e in demos]
+    X, lengths = np.concatenate([e.O for e in demos]), [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
     cells = []
     for spacing in spacings:
         for threshold in thresholds:
-            model = PrimitiveDiscovery(spacing=spacing, threshold=threshold).fit(objects, hands)
+            model = PrimitiveDiscovery(spacing=spacing, threshold=threshold).fit(X, lengths, H)
             r = evaluate_discovery(model, demos)
             cells.append({
                 "spacing": spacing,

@@ -291,15 +291,6 @@ def effect_error_cm(model: ClassModel, phi, truth) -> float:
     return float(50 * (np.linalg.norm(estimate[:3] - truth[:3]) + np.linalg.norm(estimate[3:] - truth[3:])))
 
 
-def held_out_segments(labels) -> list[tuple[int, int, int]]:
-    """Runs of one primitive id in a per-frame labelling: ``(id, start, end exclusive)``."""
-    import numpy as np
-
-    cuts = np.flatnonzero(np.diff(labels)) + 1
-    bounds = np.concatenate([[0], cuts, [len(labels)]])
-    return [(int(labels[a]), int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
-
-
 def label_summary(rows: list[dict], label_key: str, error_key: str) -> dict:
     """Class accuracy (all, manipulation) of the labels under ``label_key`` in each row, and the phi
     error under ``error_key`` of the segments they got right."""
@@ -359,6 +350,7 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
     from hoap_actions.primitives.grammar import ActionGrammar
+    from hoap_actions.primitives.labels import runs as labels_runs
     from hoap_actions.primitives.parametric_hmm import Recognition
 
     for path, seed in [*zip(args.train, training_seeds(len(args.train), args.test_seed)), (args.test, args.test_seed)]:
@@ -369,25 +361,33 @@ def main(argv: list[str] | None = None) -> dict:
     started = time.perf_counter()
     train = [e for path in args.train for e in load_demonstrations(path)]
     test = load_demonstrations(args.test)
-    discovery = PrimitiveDiscovery().fit([e.O for e in train], [e.H.reshape(e.T, -1) for e in train])
-    inputs = [observations(e.H, args.velocity) for e in train]
+    train_lengths = [e.T for e in train]
+    discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in train]), train_lengths,
+                                         np.concatenate([e.H.reshape(e.T, -1) for e in train]))
+    train_inputs = np.concatenate([observations(e.H, args.velocity) for e in train])
+
+    def movements(cls) -> list:
+        """The class's segments of the training inputs, one array each."""
+        X, lengths = cls.movements(train_inputs, train_lengths)
+        return np.split(X, np.cumsum(lengths)[:-1])
+
     marker = slice(3 * discovery.hand_marker, 3 * discovery.hand_marker + 3)
 
     models: dict[int, ClassModel] = {}
     chosen: dict[int, dict] = {}
     action_of: dict[int, str] = {}  # evaluation only: the hidden phase most of a class's segments belong to
     for cls in discovery.classes_:
-        models[cls.primitive_id], chosen[cls.primitive_id] = train_class(cls.movements(inputs), cls.effects, args)
+        models[cls.primitive_id], chosen[cls.primitive_id] = train_class(movements(cls), cls.phis, args)
         phases = Counter(str(train[s.demo].ground_truth.phases()[(s.start + s.end) // 2]) for s in cls.segments)
         action_of[cls.primitive_id] = phases.most_common(1)[0][0]
     manipulation_classes = [cls for cls in discovery.classes_ if cls.kind == MANIPULATION]
     prior = None
     if args.covars_weight > 0:  # refit the manipulation pieces with a prior pooled over them
         prior = pooled_variances([models[cls.primitive_id] for cls in manipulation_classes],
-                                 [sum(len(m) for m in cls.movements(inputs)) for cls in manipulation_classes],
+                                 [sum(len(m) for m in movements(cls)) for cls in manipulation_classes],
                                  args.reg_covar)
         for cls in manipulation_classes:
-            models[cls.primitive_id], chosen[cls.primitive_id] = train_class(cls.movements(inputs), cls.effects,
+            models[cls.primitive_id], chosen[cls.primitive_id] = train_class(movements(cls), cls.phis,
                                                                              args, covars_prior=prior)
     fitted = time.perf_counter()
     print(f"discovery on {len(train)} training demonstrations: {len(models)} classes; PHMMs trained in "
@@ -402,8 +402,8 @@ def main(argv: list[str] | None = None) -> dict:
     unknown = {"segments": 0, "frames": 0}
     unparsed = Counter()  # per decoder: held-out demonstrations without a grammatical decoding
     pieces = []  # per held-out episode: (class, start, end) of each parsed run
-    for labels in discovery.predict([e.O for e in test]):
-        runs = held_out_segments(labels)
+    for labels in discovery.predict(np.concatenate([e.O for e in test]), [e.T for e in test]):
+        runs = labels_runs(labels)
         for cid, start, end in runs:
             if cid == UNKNOWN:
                 unknown["segments"] += 1

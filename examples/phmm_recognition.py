@@ -23,6 +23,7 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.datasets import load_demonstrations
 from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
 from hoap_actions.primitives.grammar import ActionGrammar
+from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.parametric_hmm import ParametricHMM, recognize
 
 
@@ -40,31 +41,30 @@ def main() -> None:
             record("paper", path, seed=seed)
     train, test = load_demonstrations(args.train), load_demonstrations(args.test)
 
-    hands = [e.H.reshape(e.T, -1) for e in train]                      # (T, 18): 6 markers x 3
-    discovery = PrimitiveDiscovery().fit([e.O for e in train], hands)
+    hands = np.concatenate([e.H.reshape(e.T, -1) for e in train])      # (N, 18): 6 markers x 3
+    lengths = [e.T for e in train]                                      # frames per demonstration
+    discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in train]), lengths, hands)
     models, frames = {}, {}
     for cls in discovery.classes_:
         # phi = (initial, final) location; keep only the directions it varies in (the block stays on the table)
-        effects = cls.effects
+        effects = cls.phis
         centre = effects.mean(axis=0)
         _, sv, vt = np.linalg.svd(effects - centre, full_matrices=False)
         basis = vt[: int(min(np.sum(sv / np.sqrt(len(effects)) > 0.01), max(len(effects) - 2, 0)))].T
-        movements = cls.movements(hands)
-        lengths = [len(m) for m in movements]
-        model = ParametricHMM(n_states=min(40, min(lengths)), covariance_type="diag", reg_covar=1e-5, random_state=0)
-        models[cls.primitive_id] = model.fit(np.concatenate(movements), lengths, (effects - centre) @ basis)
+        X, segment_lengths = cls.movements(hands, lengths)
+        model = ParametricHMM(n_states=min(40, min(segment_lengths)), covariance_type="diag", reg_covar=1e-5,
+                              random_state=0)
+        models[cls.primitive_id] = model.fit(X, segment_lengths, (effects - centre) @ basis)
         frames[cls.primitive_id] = (centre, basis)
     # the strict grammar: only the class transitions seen in the training demonstrations
     grammar = ActionGrammar().fit([[pid for pid, *_ in seg] for seg in discovery.segmentations_])
     print(f"{len(models)} primitive classes discovered in {len(train)} demonstrations")
 
     episode = test[args.episode]
-    labels = discovery.predict([episode.O])[0]                          # cut by the discovery, not by ground truth
-    bounds = np.concatenate([[0], np.flatnonzero(np.diff(labels)) + 1, [episode.T]])
+    labels = discovery.predict(episode.O, [episode.T])[0]              # cut by the discovery, not by ground truth
     print(f"held-out episode {args.episode} ({episode.ground_truth.action} {episode.ground_truth.direction}):")
     expected_classes, results = [], []
-    for start, end in zip(bounds[:-1], bounds[1:]):
-        expected = int(labels[start])
+    for expected, start, end in runs(labels):
         if expected == UNKNOWN:
             continue
         result = recognize(episode.H[start:end].reshape(end - start, -1), models)

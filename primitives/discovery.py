@@ -1,17 +1,20 @@
 """Unsupervised discovery of action primitives from the effect of demonstrations on an object.
 
-This implements the section "Unsupervised Learning of Action Primitive Classes According to the
-Effect on Objects" of the 2010 paper (eqs. 1-3, Figs. 4, 5, 7):
+This module holds the estimator, :class:`PrimitiveDiscovery`, and what it learns
+(:class:`PrimitiveClass`, :class:`Segment`). It implements the section "Unsupervised Learning of
+Action Primitive Classes According to the Effect on Objects" of the 2010 paper (eqs. 1-3, Figs. 4,
+5, 7):
 
 1. every object trajectory O_i (relative to its initial pose) is cut into pieces of about equal
    arc length (``spacing``); each piece becomes a Gaussian and the trajectory a left-right HMM;
 2. the HMMs are folded, one after the other, into one joint HMM: states whose Kullback-Leibler
-   divergence (eq. 1) is below ``threshold`` are merged with eqs. (2)-(3), omega = 0.5;
+   divergence (eq. 1) is below ``threshold`` are merged with eqs. (2)-(3), omega = 0.5
+   (:mod:`hoap_actions.primitives.gaussians`);
 3. every trajectory is Viterbi-decoded with the joint HMM (densities from
-   :mod:`hoap_actions.primitives.hmm_math`; :func:`sparse_viterbi`, as the joint HMM's chains
-   allow few transitions per state);
+   :mod:`hoap_actions.primitives.hmm_math`; :mod:`hoap_actions.primitives.sparse_viterbi`, as the
+   joint HMM's chains allow few transitions per state);
 4. repetitions are dropped and the state strings are cut into common and unique substrings by
-   longest common substring (Fig. 5), see :func:`find_primitives`;
+   longest common substring (Fig. 5, :func:`hoap_actions.primitives.substrings.find_primitives`);
 5. the segmentation is carried over to the arm-marker trajectories H_i: each primitive becomes an
    equivalence class of H segments, each with its effect phi = (initial, final) 3-D location.
 
@@ -56,19 +59,24 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import pairwise
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.errors import DataFileError, InvalidInputError
 from hoap_actions.primitives import hmm_math
+from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
 from hoap_actions.primitives.datasets import MAX_COORDINATE_M
+from hoap_actions.primitives.gaussians import merge_gaussians, symmetric_kl_matrix
 from hoap_actions.primitives.json_files import read_json_model, write_json_model
+from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
+from hoap_actions.primitives.substrings import find_primitives
 
 logger = logging.getLogger(__name__)
 
@@ -76,260 +84,15 @@ FORMAT_VERSION = 1
 OBJECT_DIM = 6
 N_MARKERS = 6
 HAND_DIM = 3 * N_MARKERS
-OMEGA = 0.5
-MIN_COMMON_LENGTH = 2
 DEFAULT_SPACING = 0.03  # m, tuned on the paper preset (benchmarks/discovery_sweep.py)
 DEFAULT_THRESHOLD = 3.0  # nats, ditto
 REST_FLOOR = 0.1  # fraction of the rest tolerance below which a displacement is creep, not motion
 DECODE_CELLS = 4_000_000  # frames x states decoded per batch: bounds the decoding's memory (~100 MB)
 APPROACH, MANIPULATION, REMOVE = "approach", "manipulation", "remove"
-UNKNOWN = -1
+UNKNOWN = -1  # the class id of frames that start no known primitive
 # Longest object rotation vector accepted (rad): any rotation, from a quaternion of either sign, is
 # within 2 pi; far longer ones are corrupt values on which scipy's rotations break down.
 MAX_ROTATION_ANGLE_RAD = 2.0 * math.pi
-
-
-# ----------------------------------------------------------------------------- Gaussians (eqs. 1-3)
-
-
-def gaussian_kl(mean_q: np.ndarray, cov_q: np.ndarray, mean_p: np.ndarray, cov_p: np.ndarray) -> np.ndarray:
-    """Eq. (1): D_KL(Q||P) of Q = N(mean_q, cov_q) from P = N(mean_p, cov_p), in nats.
-
-    Broadcasts over leading axes: means ``(..., n)``, covariances ``(..., n, n)`` SPD.
-    """
-    mean_q, mean_p = np.asarray(mean_q, float), np.asarray(mean_p, float)
-    cov_q, cov_p = np.asarray(cov_q, float), np.asarray(cov_p, float)
-    n = mean_q.shape[-1]
-    diff = (mean_p - mean_q)[..., None]
-    trace = np.trace(np.linalg.solve(cov_p, cov_q), axis1=-2, axis2=-1)
-    mahalanobis = (np.swapaxes(diff, -1, -2) @ np.linalg.solve(cov_p, diff))[..., 0, 0]
-    logdet_ratio = np.linalg.slogdet(cov_p)[1] - np.linalg.slogdet(cov_q)[1]
-    return 0.5 * (logdet_ratio + trace + mahalanobis - n)
-
-
-def symmetric_kl_matrix(
-    means_a: np.ndarray, covs_a: np.ndarray, means_b: np.ndarray, covs_b: np.ndarray
-) -> np.ndarray:
-    """``(D_KL(a_k||b_m) + D_KL(b_m||a_k)) / 2`` for all pairs, shape ``(K, M)``, vectorised.
-
-    The log-determinants cancel, leaving traces and a Mahalanobis term with the summed precisions.
-    """
-    prec_a, prec_b = _spd_inverse(covs_a), _spd_inverse(covs_b)
-    n = means_a.shape[1]
-    traces = np.einsum("mij,kji->km", prec_b, covs_a) + np.einsum("kij,mji->km", prec_a, covs_b)
-    diff = means_a[:, None, :] - means_b[None, :, :]
-    mahalanobis = np.einsum("kmi,kij,kmj->km", diff, prec_a, diff) + np.einsum("kmi,mij,kmj->km", diff, prec_b, diff)
-    return 0.25 * (traces + mahalanobis) - 0.5 * n
-
-
-def merge_gaussians(
-    mean0: np.ndarray, cov0: np.ndarray, mean1: np.ndarray, cov1: np.ndarray, omega: float = OMEGA
-) -> tuple[np.ndarray, np.ndarray]:
-    """Eqs. (2)-(3): precision-weighted merge of two Gaussians; broadcasts over leading axes.
-
-    ``Sigma^-1 = omega Sigma0^-1 + (1 - omega) Sigma1^-1``,
-    ``mu = Sigma (omega Sigma0^-1 mu0 + (1 - omega) Sigma1^-1 mu1)``.
-    """
-    if not 0.0 <= omega <= 1.0:
-        raise InvalidInputError(f"omega must be in [0, 1], got {omega}")
-    prec0, prec1 = _spd_inverse(np.asarray(cov0, float)), _spd_inverse(np.asarray(cov1, float))
-    prec = omega * prec0 + (1.0 - omega) * prec1
-    cov = _spd_inverse(prec)
-    weighted = omega * (prec0 @ np.asarray(mean0, float)[..., None]) + (1.0 - omega) * (
-        prec1 @ np.asarray(mean1, float)[..., None]
-    )
-    return (cov @ weighted)[..., 0], cov
-
-
-def _spd_inverse(cov: np.ndarray) -> np.ndarray:
-    """Inverse of SPD matrices via Cholesky, symmetrised (stabler than ``inv`` for small variances)."""
-    chol_inv = np.linalg.inv(np.linalg.cholesky(cov))
-    return np.swapaxes(chol_inv, -1, -2) @ chol_inv
-
-
-# ------------------------------------------------------------------ longest common substring (Fig. 5)
-
-
-def longest_common_substring(a: Sequence[int], b: Sequence[int]) -> tuple[int, int, int]:
-    """Longest common substring of two int strings by dynamic programming, one numpy row per symbol of ``a``.
-
-    Returns ``(start_in_a, start_in_b, length)``; the first longest in row-major order; length 0 if none.
-    """
-    end_a, end_b, length = _longest_match(np.asarray(a, int), np.asarray(b, int))
-    return end_a - length + 1, end_b - length + 1, length
-
-
-def _longest_match(x: np.ndarray, y: np.ndarray) -> tuple[int, int, int]:
-    """``(end_x, end_y, length)`` of the longest common substring.
-
-    ``run[j]`` is the length of the common suffix of ``x[:i+1]`` and ``y[:j+1]``; each row is one
-    vector operation on the previous row shifted by one.
-    """
-    run = np.zeros(len(y) + 1, dtype=np.int64)
-    best = (0, 0, 0)
-    for i, symbol in enumerate(x):
-        new = np.zeros_like(run)
-        new[1:] = np.where(y == symbol, run[:-1] + 1, 0)
-        run = new
-        j = int(np.argmax(run[1:])) if len(y) else 0
-        if len(y) and run[j + 1] > best[2]:
-            best = (i, j, int(run[j + 1]))
-    return best
-
-
-def find_primitives(
-    sequences: Sequence[Sequence[int]], min_length: int = MIN_COMMON_LENGTH
-) -> tuple[list[tuple[int, ...]], list[list[int]]]:
-    """Cut state strings into common and unique substrings (the paper's LCS step, Fig. 5).
-
-    Procedure, generalising the two-string example to many strings: keep every string as a list of
-    pieces (initially one piece each). Repeatedly take the distinct pieces, find the longest
-    substring of length >= ``min_length`` common to two different ones (the first such in order of
-    appearance), and split every piece at every (non-overlapping, left to right) occurrence of it.
-    Stop when no two distinct pieces share such a substring; the distinct pieces are then the
-    primitives, each either common or unique to one string.
-
-    Pieces found earlier are split again when a later, shorter common substring lies inside them;
-    extracting only from the matched pair would make the push of Fig. 7 over the longest distance
-    one primitive (P1 P2 P3) instead of reusing the shorter pushes' P1 and P2. Each round splits at
-    least one piece, so it ends after at most as many rounds as there are symbols.
-
-    Returns ``(primitives, labels)``: primitives as tuples in order of first appearance, and per
-    string the primitive indices of its pieces in order.
-    """
-    if min_length < 1:
-        raise InvalidInputError(f"min_length must be >= 1, got {min_length}")
-    pieces = [[tuple(int(s) for s in seq)] if len(seq) else [] for seq in sequences]
-    while True:
-        distinct = list(dict.fromkeys(p for seq in pieces for p in seq))
-        common = _longest_common_piece(distinct)
-        if len(common) < min_length:
-            break
-        pieces = [[part for piece in seq for part in _split_at(piece, common)] for seq in pieces]
-    primitives = list(dict.fromkeys(p for seq in pieces for p in seq))
-    index = {p: k for k, p in enumerate(primitives)}
-    return primitives, [[index[p] for p in seq] for seq in pieces]
-
-
-def _longest_common_piece(pieces: list[tuple[int, ...]]) -> tuple[int, ...]:
-    """Longest substring shared by two different pieces (empty tuple if none); of those, the first in order.
-
-    A binary search on the length: a common substring of length n has common prefixes of every
-    shorter length, and each test hashes the O(total length) substrings of one length. The
-    pairwise dynamic programme it replaces was quadratic in the total length, every round.
-    """
-    low, high = 0, max((len(p) for p in pieces), default=0)
-    while low < high:
-        middle = (low + high + 1) // 2
-        if _first_shared(pieces, middle):
-            low = middle
-        else:
-            high = middle - 1
-    return _first_shared(pieces, low) if low else ()
-
-
-def _first_shared(pieces: list[tuple[int, ...]], n: int) -> tuple[int, ...]:
-    """The first (in piece order, then position) length-``n`` substring found in two different pieces, or ``()``."""
-    owner: dict[tuple[int, ...], int] = {}
-    shared = set()
-    for k, piece in enumerate(pieces):
-        for i in range(len(piece) - n + 1):
-            sub = piece[i : i + n]
-            if owner.setdefault(sub, k) != k:
-                shared.add(sub)
-    if shared:
-        for piece in pieces:
-            for i in range(len(piece) - n + 1):
-                if piece[i : i + n] in shared:
-                    return piece[i : i + n]
-    return ()
-
-
-def _split_at(piece: tuple[int, ...], sub: tuple[int, ...]) -> list[tuple[int, ...]]:
-    """Split ``piece`` around every non-overlapping occurrence of ``sub``, scanning left to right."""
-    parts, start, i, n = [], 0, 0, len(sub)
-    while i + n <= len(piece):
-        if piece[i : i + n] == sub:
-            parts.extend(p for p in (piece[start:i], sub) if p)
-            i += n
-            start = i
-        else:
-            i += 1
-    if start < len(piece):
-        parts.append(piece[start:])
-    return parts
-
-
-# ------------------------------------------------------------------------------ sparse Viterbi
-
-
-def sparse_viterbi(
-    log_startprob: np.ndarray, log_transmat: np.ndarray, log_frameprob: np.ndarray, lengths: Sequence[int]
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`hmm_math.viterbi` for a sparse transition matrix: ``(best log-probability (S,), states (N,))``.
-
-    The joint HMM is a few hundred states in merged left-right chains, so each state has a handful
-    of predecessors; a dense step costs ``K^2`` per frame, this one the number of allowed
-    (finite) transitions. Sequences are sorted by length so the ones still running at time ``t``
-    are a prefix, and the frames are never padded. Ties go to the lowest state index, as in
-    :func:`hmm_math.viterbi`; an impossible sequence gets ``-inf`` and a meaningless path.
-    """
-    log_pi = np.asarray(log_startprob, float)
-    log_a = np.asarray(log_transmat, float)
-    logb = np.asarray(log_frameprob, float)
-    lengths = np.asarray(lengths, dtype=np.int64)
-    n_states = len(log_pi)
-    if log_a.shape != (n_states, n_states) or logb.ndim != 2 or logb.shape[1] != n_states:
-        raise InvalidInputError(
-            f"shapes disagree: startprob {log_pi.shape}, transmat {log_a.shape}, frameprob {logb.shape}"
-        )
-    if lengths.ndim != 1 or len(lengths) == 0 or np.any(lengths < 1) or lengths.sum() != len(logb):
-        raise InvalidInputError(f"lengths must be positive ints summing to the {len(logb)} frames; got {lengths}")
-    # edges sorted by destination, then source: the first best edge of a group is the lowest source
-    dst, src = np.nonzero(np.isfinite(log_a).T)
-    weight = log_a[src, dst]
-    group_start = np.flatnonzero(np.r_[True, dst[1:] != dst[:-1]]) if len(dst) else np.empty(0, int)
-    group_dst, group_size = dst[group_start], np.diff(np.r_[group_start, len(dst)])
-    edge_index = np.arange(len(dst))
-
-    order = np.argsort(-lengths, kind="stable")
-    starts = (np.cumsum(lengths) - lengths)[order]
-    sorted_lengths = lengths[order]
-    t_max = int(sorted_lengths[0])
-    active = np.searchsorted(-sorted_lengths, -np.arange(t_max + 1), side="left")  # sequences with length > t
-    back = np.zeros(logb.shape, dtype=np.int32)
-    delta = log_pi + logb[starts]
-    finals = np.empty((len(lengths), n_states))
-    ending = slice(active[1], active[0])
-    finals[ending] = delta[ending]
-    for t in range(1, t_max):
-        n = active[t]
-        new = np.full((n, n_states), -np.inf)
-        if len(dst):
-            cand = delta[:n, src] + weight
-            best = np.maximum.reduceat(cand, group_start, axis=1)
-            is_best = cand == np.repeat(best, group_size, axis=1)
-            first = np.minimum.reduceat(np.where(is_best, edge_index, len(dst)), group_start, axis=1)
-            new[:, group_dst] = best
-            back[(starts[:n] + t)[:, None], group_dst[None, :]] = src[first]
-        delta[:n] = new + logb[starts[:n] + t]
-        ending = slice(active[t + 1], n)
-        finals[ending] = delta[ending]
-    final_state = np.argmax(finals, axis=1)
-    best_logprob = finals[np.arange(len(lengths)), final_state]
-    path = np.empty(len(logb), dtype=np.intp)
-    state = final_state.copy()
-    for t in range(t_max - 1, -1, -1):
-        n = active[t]
-        ending = slice(active[t + 1], n)
-        state[ending] = final_state[ending]
-        frames = starts[:n] + t
-        path[frames] = state[:n]
-        if t:
-            state[:n] = back[frames, state[:n]]
-    result = np.empty(len(lengths))
-    result[order] = best_logprob
-    return result, path
 
 
 # ----------------------------------------------------------------------------------- learned values
@@ -352,8 +115,8 @@ class Segment:
     source: str
 
     @property
-    def effect(self) -> np.ndarray:
-        """phi = (initial, final), shape ``(6,)``, metres."""
+    def phi(self) -> np.ndarray:
+        """The effect phi = (initial, final), shape ``(6,)``, metres."""
         return np.array(self.initial + self.final)
 
 
@@ -367,19 +130,33 @@ class PrimitiveClass:
     segments: tuple[Segment, ...]
 
     @property
-    def effects(self) -> np.ndarray:
-        """Effects of all segments, shape ``(n_segments, 6)``: initial then final location (m)."""
-        return np.array([s.effect for s in self.segments]).reshape(-1, 6)
+    def phis(self) -> np.ndarray:
+        """The effect phi of every segment, shape ``(n_segments, 6)``: initial then final location (m)."""
+        return np.array([s.phi for s in self.segments]).reshape(-1, 6)
 
-    def movements(self, hands: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """The class's arm-marker trajectories cut from ``hands`` (the ``H_i`` given to ``fit``)."""
-        return [np.asarray(hands[s.demo])[s.start : s.end] for s in self.segments]
+    def movements(self, H: np.ndarray, lengths: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The class's arm movements as ``(X, lengths)``, one sequence per segment in order, ready for
+        :meth:`ParametricHMM.fit <hoap_actions.primitives.parametric_hmm.ParametricHMM.fit>` with :attr:`phis`.
+
+        ``H`` and ``lengths`` are the concatenated arm markers ``(N, 18)`` and per-demonstration frame
+        counts given to :meth:`PrimitiveDiscovery.fit` (or any per-frame features of those frames).
+        """
+        H, lengths = hmm_math.validate_sequences(H, lengths)
+        for s in self.segments:
+            if s.demo >= len(lengths) or s.end > lengths[s.demo]:
+                known = f"{lengths[s.demo]} frames" if s.demo < len(lengths) else f"only {len(lengths)} demonstrations"
+                raise InvalidInputError(f"the class has frames [{s.start}, {s.end}) of demonstration {s.demo} but "
+                                        f"lengths gives {known}; give the H and lengths of the demonstrations fit was "
+                                        "given")
+        offsets = np.cumsum(lengths) - lengths
+        pieces = [H[offsets[s.demo] + s.start : offsets[s.demo] + s.end] for s in self.segments]
+        return np.concatenate(pieces), np.array([s.end - s.start for s in self.segments])
 
 
 # ---------------------------------------------------------------------------------------- estimator
 
 
-class PrimitiveDiscovery:
+class PrimitiveDiscovery(Estimator):
     """Learn action primitives from object trajectories (and their equivalence classes in arm space).
 
     Parameters
@@ -424,11 +201,20 @@ class PrimitiveDiscovery:
         ``"remove"``. For approach and remove the tuple lists every rest state decoded as that part
         (the object rests in different places), not a substring.
     segmentations_:
-        Per trajectory, ``(primitive_id, start_frame, end_frame)`` with ``end_frame`` exclusive,
+        Per trajectory, ``(primitive_id, start_frame, end_frame)`` ints with ``end_frame`` exclusive,
         tiling all frames.
     classes_:
-        Per primitive id, a :class:`PrimitiveClass`: the H segments and their effects.
+        Per primitive id, a :class:`PrimitiveClass`: the H segments and their effects phi.
+
+    Saved as JSON (:meth:`save`, ``kind`` "PrimitiveDiscovery", ``format_version`` :data:`FORMAT_VERSION`):
+    ``params`` (as :meth:`get_params`) and every learned attribute under its name without the ``_``.
     """
+
+    _learned = ("joint_means_", "joint_covars_", "joint_at_rest_", "transmat_", "startprob_", "state_sequences_",
+                "primitives_", "primitive_kinds_", "segmentations_", "classes_")
+    _file_kind = "PrimitiveDiscovery"
+    _format_version = FORMAT_VERSION
+    _readable_versions = (FORMAT_VERSION,)
 
     def __init__(
         self,
@@ -458,18 +244,7 @@ class PrimitiveDiscovery:
         """The ``reg_covar`` in use (m^2): as given, or ``spacing**2 / 48`` when it is ``None``."""
         return self.spacing**2 / 48.0 if self.reg_covar is None else self.reg_covar
 
-    def get_params(self) -> dict:
-        """Hyper-parameters as given to ``__init__``."""
-        return {
-            "spacing": self.spacing,
-            "threshold": self.threshold,
-            "reg_covar": self.reg_covar,
-            "rotation_radius": self.rotation_radius,
-            "hand_marker": self.hand_marker,
-            "random_state": self.random_state if isinstance(self.random_state, (int, type(None))) else None,
-        }
-
-    def _check_params(self) -> None:
+    def _check_hyper_parameters(self) -> None:
         for name in ("spacing", "threshold", "reg_covar", "rotation_radius"):
             value = getattr(self, name)
             if name == "reg_covar" and value is None:
@@ -481,34 +256,35 @@ class PrimitiveDiscovery:
 
     # -- fit
 
-    def fit(self, trajectories: Sequence[np.ndarray], hands: Sequence[np.ndarray] | None = None) -> PrimitiveDiscovery:
+    def fit(self, X: np.ndarray, lengths: Sequence[int], H: np.ndarray | None = None) -> PrimitiveDiscovery:
         """Learn the joint HMM, the primitives and their equivalence classes.
 
-        ``trajectories``: list of raw object poses ``(T_i, 6)`` = position (m) + rotation vector (rad),
-        world frame, one fixed sampling rate. ``hands``: optional matching arm markers ``(T_i, 18)``
-        (6 markers x xyz, m) for the effects of approach and remove. Coordinates beyond
-        :data:`~hoap_actions.primitives.datasets.MAX_COORDINATE_M` and rotation vectors longer than
-        :data:`MAX_ROTATION_ANGLE_RAD` raise InvalidInputError naming the trajectory and the frame.
+        ``X``: the demonstrations' raw object poses concatenated, ``(N, 6)`` = position (m) + rotation
+        vector (rad), world frame, one fixed sampling rate; ``lengths``: the frame count of each
+        demonstration (positive ints summing to ``N``), as hmmlearn takes sequences. ``H``: optional
+        matching arm markers ``(N, 18)`` (6 markers x xyz, m) for the effects of approach and remove.
+        Coordinates beyond :data:`~hoap_actions.primitives.datasets.MAX_COORDINATE_M` and rotation
+        vectors longer than :data:`MAX_ROTATION_ANGLE_RAD` raise InvalidInputError naming the
+        demonstration, its frame and the row of ``X`` / ``H``.
 
         A single demonstration gives approach, one manipulation primitive (nothing to compare it
         with) and remove. A trajectory whose object never moves is one rest: all of it is approach.
         """
-        self._check_params()
-        objects = _check_objects(trajectories)
-        arms = None if hands is None else _check_hands(hands, objects)
+        self._check_hyper_parameters()
+        objects, arms = _split_demonstrations(X, lengths, H)
         relative, pieces = zip(*(self._prepare(o) for o in objects))
         self._build_joint_hmm(relative, pieces)
-        runs = self._decode(relative, pieces)
-        self.state_sequences_ = [tuple(states) for states, _ in runs]
+        decoded = self._decode(relative, pieces)
+        self.state_sequences_ = [tuple(states) for states, _ in decoded]
 
         middles, lead, trail = [], [], []
-        for states, _ in runs:
+        for states, _ in decoded:
             first, last = self._rest_bounds(states)
             lead.append(first)
             trail.append(last)
             middles.append(states[first:last])
         motion_primitives, motion_labels = find_primitives(middles)
-        self._assign_primitives(runs, lead, trail, motion_primitives, motion_labels)
+        self._assign_primitives(decoded, lead, trail, motion_primitives, motion_labels)
         self.classes_ = self._make_classes(objects, arms)
         logger.info(
             "discovered %d primitives from %d demonstrations (%d joint states)",
@@ -518,10 +294,11 @@ class PrimitiveDiscovery:
         )
         return self
 
-    def relative_trajectories(self, trajectories: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """Raw object poses ``(T_i, 6)`` as :meth:`fit` models them: relative to the initial rest pose (m, rad)."""
-        self._check_params()
-        return [self._prepare(o)[0] for o in _check_objects(trajectories)]
+    def relative_trajectories(self, X: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
+        """Raw object poses ``X`` ``(N, 6)`` of demonstrations of ``lengths`` frames as :meth:`fit` models
+        them: one ``(T_i, 6)`` array per demonstration, relative to its initial rest pose (m, rad)."""
+        self._check_hyper_parameters()
+        return [self._prepare(o)[0] for o in _split_demonstrations(X, lengths)[0]]
 
     def _prepare(self, poses: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]]:
         """The trajectory relative to its initial rest pose, and its pieces."""
@@ -593,9 +370,7 @@ class PrimitiveDiscovery:
         progress = np.maximum.accumulate(progress)
         n_pieces = max(1, int(np.floor(progress[-1] / self.spacing + 0.5)))
         index = np.minimum(np.floor(progress / self.spacing).astype(int), n_pieces - 1)
-        bounds = np.flatnonzero(np.diff(index)) + 1
-        edges = [0, *bounds.tolist(), end - start]
-        return [(start + a, start + b, False) for a, b in pairwise(edges)]
+        return [(start + a, start + b, False) for _, a, b in runs(index)]
 
     def _build_joint_hmm(self, relative: list[np.ndarray], pieces: list[list[tuple[int, int, bool]]]) -> None:
         """Fold the per-trajectory left-right HMMs into the joint HMM (paper's recursive merge)."""
@@ -666,10 +441,10 @@ class PrimitiveDiscovery:
             log_start, log_trans = np.log(self.startprob_), np.log(self.transmat_)
         frames_per_batch = max(1, DECODE_CELLS // len(self.joint_means_))
         batch_of = np.cumsum([len(r) for r in relative]) // frames_per_batch  # a long sequence may make its own
-        runs = []
-        for batch in np.split(np.arange(len(relative)), np.flatnonzero(np.diff(batch_of)) + 1):
-            runs += self._decode_batch([relative[i] for i in batch], [pieces[i] for i in batch], log_start, log_trans)
-        return runs
+        encoded = []
+        for _, first, end in runs(batch_of):
+            encoded += self._decode_batch(list(relative[first:end]), list(pieces[first:end]), log_start, log_trans)
+        return encoded
 
     def _decode_batch(
         self,
@@ -688,13 +463,11 @@ class PrimitiveDiscovery:
         if not np.isfinite(best).all():  # a kind of part the model never saw (e.g. motion, all demos still)
             impossible = np.repeat(~np.isfinite(best), lengths)
             path[impossible] = sparse_viterbi(log_start, log_trans, log_frameprob, lengths)[1][impossible]
-        runs = []
+        encoded = []
         for seq_path in np.split(path, np.cumsum(lengths)[:-1]):
-            change = np.flatnonzero(np.diff(seq_path)) + 1
-            starts = np.concatenate([[0], change])
-            ends = np.concatenate([change, [len(seq_path)]])
-            runs.append(([int(seq_path[s]) for s in starts], list(zip(starts.tolist(), ends.tolist()))))
-        return runs
+            states = runs(seq_path)
+            encoded.append(([state for state, _, _ in states], [(start, end) for _, start, end in states]))
+        return encoded
 
     def _rest_bounds(self, states: Sequence[int]) -> tuple[int, int]:
         """``(first, last)``: ``states[:first]`` is the leading rest run, ``states[last:]`` the trailing one."""
@@ -707,7 +480,7 @@ class PrimitiveDiscovery:
 
     def _assign_primitives(
         self,
-        runs: list[tuple[list[int], list[tuple[int, int]]]],
+        decoded: list[tuple[list[int], list[tuple[int, int]]]],
         lead: list[int],
         trail: list[int],
         motion_primitives: list[tuple[int, ...]],
@@ -726,7 +499,7 @@ class PrimitiveDiscovery:
                 kinds.append(kind)
             return keys[key]
 
-        for (states, frames), first, last, labels in zip(runs, lead, trail, motion_labels):
+        for (states, frames), first, last, labels in zip(decoded, lead, trail, motion_labels):
             segments = []
             if first > 0:
                 rest_states[APPROACH].extend(states[:first])
@@ -769,26 +542,27 @@ class PrimitiveDiscovery:
 
     # -- use
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "primitives_"):
-            raise NotFittedError("this PrimitiveDiscovery is not fitted yet: call fit() or load() first")
+    def predict(self, X: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
+        """Per-frame primitive ids of new demonstrations: one ``(T_i,)`` int array per demonstration.
 
-    def predict(self, trajectories: Sequence[np.ndarray]) -> list[np.ndarray]:
-        """Per-frame primitive ids ``(T_i,)`` for raw object trajectories ``(T_i, 6)``.
+        ``X`` and ``lengths`` are raw object poses ``(N, 6)`` and frame counts, as :meth:`fit` takes
+        them. The result is split per demonstration because every use of it is (cutting each into
+        segments with :func:`hoap_actions.primitives.labels.runs`, comparing with ``segmentations_``);
+        ``np.concatenate`` gives hmmlearn's ``(N,)``.
 
         Frames are Viterbi-decoded with the joint HMM; rest runs at the ends are approach / remove and
         the states between are parsed left to right into the longest known manipulation primitive.
         Frames whose states start no known primitive are labelled ``UNKNOWN`` (-1).
         """
-        self._check_fitted()
-        objects = _check_objects(trajectories)
+        check_is_fitted(self)
+        objects, _ = _split_demonstrations(X, lengths)
         relative, pieces = zip(*(self._prepare(o) for o in objects))
-        runs = self._decode(relative, pieces)
+        decoded = self._decode(relative, pieces)
         ids = {kind: self.primitive_kinds_.index(kind) for kind in (APPROACH, REMOVE) if kind in self.primitive_kinds_}
         motion = [(p, pid) for pid, p in enumerate(self.primitives_) if self.primitive_kinds_[pid] == MANIPULATION]
         motion.sort(key=lambda item: -len(item[0]))
         labels = []
-        for (states, frames), obj in zip(runs, objects):
+        for (states, frames), obj in zip(decoded, objects):
             out = np.full(len(obj), UNKNOWN, dtype=int)
             first, last = self._rest_bounds(states)
             for kind, span in ((APPROACH, range(first)), (REMOVE, range(last, len(states)))):
@@ -807,11 +581,9 @@ class PrimitiveDiscovery:
 
     # -- persistence
 
-    def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
-        """Write the fitted model as JSON (``format_version`` = :data:`FORMAT_VERSION`)."""
-        self._check_fitted()
+    def _write(self, path: Path, overwrite: bool) -> None:
         body = {
-            "params": {k: v.item() if isinstance(v, np.generic) else v for k, v in self.get_params().items()},
+            "params": file_params(self),
             "joint_means": self.joint_means_.tolist(),
             "joint_covars": self.joint_covars_.tolist(),
             "joint_at_rest": self.joint_at_rest_.tolist(),
@@ -833,12 +605,15 @@ class PrimitiveDiscovery:
                 for c in self.classes_
             ],
         }
-        write_json_model(path, "PrimitiveDiscovery", FORMAT_VERSION, body, overwrite)
+        write_json_model(path, self._file_kind, self._format_version, body, overwrite)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> PrimitiveDiscovery:
-        """Read a model written by :meth:`save`."""
-        document = read_json_model(path, "PrimitiveDiscovery", FORMAT_VERSION)
+    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, Any]]:
+        document = read_json_model(path, cls._file_kind)
+        return document.get("kind"), document.get("format_version"), document
+
+    @classmethod
+    def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> PrimitiveDiscovery:
         try:
             model = cls(**document["params"])
             model.joint_means_ = np.array(document["joint_means"], float).reshape(-1, OBJECT_DIM)
@@ -872,65 +647,59 @@ def _xyz(point: np.ndarray) -> tuple[float, float, float]:
     return float(point[0]), float(point[1]), float(point[2])
 
 
-def _check_trajectories(trajectories: Sequence[np.ndarray], dim: int, name: str) -> list[np.ndarray]:
-    """Validate a non-empty list of finite ``(T_i, dim)`` arrays with ``T_i >= 1``; return float copies."""
-    if isinstance(trajectories, np.ndarray) and trajectories.ndim == 2:
-        raise InvalidInputError(f"{name} must be a list of (T_i, {dim}) arrays, got one 2-D array; wrap it in a list")
+def _split_demonstrations(
+    X: np.ndarray, lengths: Sequence[int], H: np.ndarray | None = None
+) -> tuple[list[np.ndarray], list[np.ndarray] | None]:
+    """Validate concatenated object poses ``X`` ``(N, 6)``, ``lengths`` and optional arm markers ``H``
+    ``(N, 18)``, and split them per demonstration.
+
+    Positions and markers must lie within :data:`MAX_COORDINATE_M` and rotation vectors within
+    :data:`MAX_ROTATION_ANGLE_RAD`, so a corrupt frame is named here, not deep inside scipy.
+    """
+    if isinstance(X, (list, tuple)) and X and all(np.ndim(x) == 2 for x in X):
+        raise InvalidInputError(f"X must be the demonstrations' object poses concatenated, (N, {OBJECT_DIM}), with "
+                                "lengths; got a list of per-demonstration arrays: pass np.concatenate(trajectories) "
+                                "and [len(t) for t in trajectories]")
+    X, lengths = hmm_math.validate_sequences(X, lengths)
+    if X.shape[1] != OBJECT_DIM:
+        raise InvalidInputError(f"X must have {OBJECT_DIM} columns (object position in m, rotation vector in rad); "
+                                f"got shape {X.shape}")
+    _check_bound("X", np.abs(X[:, :3]).max(axis=1), lengths, MAX_COORDINATE_M, "an object coordinate of", "m",
+                 "positions within +-{limit:g} m of the scene origin")
+    with np.errstate(over="ignore"):
+        angle = np.linalg.norm(X[:, 3:], axis=1)
+    _check_bound("X", angle, lengths, MAX_ROTATION_ANGLE_RAD, "a rotation vector of angle", "rad",
+                 "rotation vectors of angle <= {limit:.4g} rad (2 pi)")
+    cuts = np.cumsum(lengths)[:-1]
+    if H is None:
+        return np.split(X, cuts), None
     try:
-        items = list(trajectories)
-    except TypeError as exc:
-        kind = type(trajectories).__name__
-        raise InvalidInputError(f"{name} must be a list of (T_i, {dim}) arrays, got {kind}") from exc
-    if not items:
-        raise InvalidInputError(f"{name} is empty: at least one demonstration is needed")
-    checked = []
-    for i, item in enumerate(items):
-        try:
-            array = np.array(item, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidInputError(f"{name}[{i}] is not numeric: {exc}") from exc
-        if array.ndim != 2 or array.shape[1] != dim or array.shape[0] < 1:
-            raise InvalidInputError(f"{name}[{i}] must have shape (T, {dim}) with T >= 1, got {array.shape}")
-        if not np.isfinite(array).all():
-            raise InvalidInputError(f"{name}[{i}] contains NaN or inf; only finite values are accepted")
-        checked.append(array)
-    return checked
+        H = np.asarray(H, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"H must be a numeric array of shape (N, {HAND_DIM}); got {exc}") from exc
+    if H.shape != (len(X), HAND_DIM):
+        raise InvalidInputError(f"H must have shape (N, {HAND_DIM}) = ({len(X)}, {HAND_DIM}), the arm markers "
+                                f"(6 x xyz, m) of every frame of X; got shape {H.shape}")
+    if not np.isfinite(H).all():
+        raise InvalidInputError(f"H contains NaN or inf (first at row {np.argwhere(~np.isfinite(H))[0][0]}); "
+                                "only finite values are accepted")
+    _check_bound("H", np.abs(H).max(axis=1), lengths, MAX_COORDINATE_M, "a marker coordinate of", "m",
+                 "marker positions within +-{limit:g} m of the scene origin")
+    return np.split(X, cuts), np.split(H, cuts)
 
 
-def _check_objects(trajectories: Sequence[np.ndarray]) -> list[np.ndarray]:
-    """Validate object poses ``(T_i, 6)``: finite, positions within :data:`MAX_COORDINATE_M`, rotation
-    vectors within :data:`MAX_ROTATION_ANGLE_RAD`, so a corrupt frame is named here, not in scipy."""
-    objects = _check_trajectories(trajectories, OBJECT_DIM, "trajectories")
-    for i, poses in enumerate(objects):
-        _check_bound(f"trajectories[{i}]", np.abs(poses[:, :3]).max(axis=1), MAX_COORDINATE_M,
-                     "an object coordinate of", "m", "positions within +-{limit:g} m of the scene origin")
-        with np.errstate(over="ignore"):
-            angle = np.linalg.norm(poses[:, 3:], axis=1)
-        _check_bound(f"trajectories[{i}]", angle, MAX_ROTATION_ANGLE_RAD, "a rotation vector of angle", "rad",
-                     "rotation vectors of angle <= {limit:.4g} rad (2 pi)")
-    return objects
-
-
-def _check_bound(where: str, size: np.ndarray, limit: float, what: str, unit: str, accepted: str) -> None:
-    """Raise InvalidInputError naming the first frame whose ``size`` (T,) exceeds ``limit``.
+def _check_bound(name: str, size: np.ndarray, lengths: np.ndarray, limit: float, what: str, unit: str,
+                 accepted: str) -> None:
+    """Raise InvalidInputError naming the demonstration, frame and row of the first row of ``name`` whose
+    ``size`` (N,) exceeds ``limit``.
 
     ``accepted`` says what is accepted, with ``{limit}`` standing for the limit.
     """
-    frames = np.flatnonzero(size > limit)
-    if len(frames):
-        raise InvalidInputError(f"{where} frame {frames[0]} has {what} {size[frames[0]]:.3g} {unit} "
-                                f"({len(frames)} such frame(s)); accepted: {accepted.format(limit=limit)}")
-
-
-def _check_hands(hands: Sequence[np.ndarray], objects: list[np.ndarray]) -> list[np.ndarray]:
-    """Validate arm-marker trajectories: one ``(T_i, 18)`` array per object trajectory, same lengths,
-    coordinates within :data:`MAX_COORDINATE_M`."""
-    arms = _check_trajectories(hands, HAND_DIM, "hands")
-    if len(arms) != len(objects):
-        raise InvalidInputError(f"got {len(arms)} hand trajectories for {len(objects)} object trajectories")
-    for i, (arm, obj) in enumerate(zip(arms, objects)):
-        if len(arm) != len(obj):
-            raise InvalidInputError(f"hands[{i}] has {len(arm)} frames but trajectories[{i}] has {len(obj)}")
-        _check_bound(f"hands[{i}]", np.abs(arm).max(axis=1), MAX_COORDINATE_M, "a marker coordinate of", "m",
-                     "marker positions within +-{limit:g} m of the scene origin")
-    return arms
+    rows = np.flatnonzero(size > limit)
+    if len(rows):
+        row = int(rows[0])
+        starts = np.cumsum(lengths) - lengths
+        demo = int(np.searchsorted(starts, row, side="right")) - 1
+        raise InvalidInputError(f"{name} demonstration {demo} frame {row - starts[demo]} (row {row}) has {what} "
+                                f"{size[row]:.3g} {unit} ({len(rows)} such frame(s)); "
+                                f"accepted: {accepted.format(limit=limit)}")

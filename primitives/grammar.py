@@ -12,21 +12,23 @@ and :meth:`sample` use only those. Smoothing changes probabilities only (:meth:`
 
 from __future__ import annotations
 
-import os
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.json_files import read_json_model, write_json_model
 
 FORMAT_VERSION = 1
 START, END = "<start>", "<end>"
 
-Symbol = Hashable  # a primitive class: an int id or a str name
+Symbol = int | str  # a primitive class: an int id or a str name
 
 
-class ActionGrammar:
+class ActionGrammar(Estimator):
     """First-order probabilistic finite-state automaton over primitive classes.
 
     Parameters
@@ -34,7 +36,24 @@ class ActionGrammar:
     smoothing:
         Additive (Lidstone) pseudo-count given to every possible transition (any class or
         ``<end>`` after a class, any class after ``<start>``); 0 gives maximum likelihood.
+
+    Attributes (after ``fit`` or ``load``)
+    --------------------------------------
+    symbols_:
+        The classes in order of first appearance; automaton state ``k + 1`` is ``symbols_[k]``.
+    counts_, transmat_:
+        ``(n + 2, n + 2)`` bigram counts and transition probabilities, ``<start>`` first, ``<end>`` last.
+    n_sequences_:
+        How many sequences it was fitted on.
+
+    Saved as JSON (:meth:`save`, ``kind`` "ActionGrammar", ``format_version`` :data:`FORMAT_VERSION`):
+    ``smoothing``, ``symbols``, ``counts`` and ``n_sequences``.
     """
+
+    _learned = ("symbols_", "counts_", "n_sequences_", "transmat_")
+    _file_kind = "ActionGrammar"
+    _format_version = FORMAT_VERSION
+    _readable_versions = (FORMAT_VERSION,)
 
     def __init__(self, smoothing: float = 0.0) -> None:
         self.smoothing = smoothing
@@ -78,10 +97,6 @@ class ActionGrammar:
         totals = smoothed.sum(axis=1, keepdims=True)
         return np.divide(smoothed, totals, out=np.zeros_like(smoothed), where=totals > 0)
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "transmat_"):
-            raise NotFittedError("this ActionGrammar is not fitted yet: call fit() or load() first")
-
     # -- queries
 
     def _path(self, sequence: Sequence[Symbol]) -> list[int] | None:
@@ -94,13 +109,13 @@ class ActionGrammar:
 
     def is_grammatical(self, sequence: Sequence[Symbol]) -> bool:
         """True when every transition of ``<start> sequence <end>`` was seen in training."""
-        self._check_fitted()
+        check_is_fitted(self)
         path = self._path(sequence)
         return path is not None and len(path) > 2 and bool(np.all(self.counts_[path[:-1], path[1:]] > 0))
 
     def log_probability(self, sequence: Sequence[Symbol]) -> float:
         """Natural log of the (smoothed) probability of the whole sequence, end included; -inf if impossible."""
-        self._check_fitted()
+        check_is_fitted(self)
         path = self._path(sequence)
         if path is None or len(path) <= 2:
             return float("-inf")
@@ -112,7 +127,7 @@ class ActionGrammar:
 
         Only the last class matters (first-order). Zero-probability entries are left out.
         """
-        self._check_fitted()
+        check_is_fitted(self)
         prefix = list(prefix)
         index = self._index()
         if prefix:
@@ -149,7 +164,7 @@ class ActionGrammar:
         is ``b``, e.g. whether the effects the two classes estimate for the two segments join up
         (:func:`hoap_actions.primitives.effect_continuity.effect_gap_scores`).
         """
-        self._check_fitted()
+        check_is_fitted(self)
         if isinstance(segment_scores, Mapping) or not len(segment_scores):
             raise InvalidInputError("segment_scores must be a non-empty list with one {class: log-likelihood} "
                                     "mapping per segment")
@@ -213,7 +228,7 @@ class ActionGrammar:
         Every class seen in training was followed by ``<end>`` at some point, so a walk ends with
         probability 1.
         """
-        self._check_fitted()
+        check_is_fitted(self)
         rng = np.random.default_rng(random_state)
         weights = np.where(self.counts_ > 0, self.transmat_, 0.0)
         end = len(self.symbols_) + 1
@@ -247,7 +262,7 @@ class ActionGrammar:
 
     def to_dot(self) -> str:
         """Graphviz DOT text of the automaton (seen transitions, labelled with probabilities)."""
-        self._check_fitted()
+        check_is_fitted(self)
         lines = [
             "digraph ActionGrammar {",
             "  rankdir=LR;",
@@ -262,21 +277,22 @@ class ActionGrammar:
 
     # -- persistence
 
-    def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
-        """Write the grammar as JSON (``format_version`` = :data:`FORMAT_VERSION`)."""
-        self._check_fitted()
+    def _write(self, path: Path, overwrite: bool) -> None:
         body = {
             "smoothing": self.smoothing,
             "symbols": self.symbols_,
             "counts": self.counts_.tolist(),
             "n_sequences": self.n_sequences_,
         }
-        write_json_model(path, "ActionGrammar", FORMAT_VERSION, body, overwrite)
+        write_json_model(path, self._file_kind, self._format_version, body, overwrite)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> ActionGrammar:
-        """Read a grammar written by :meth:`save`."""
-        document = read_json_model(path, "ActionGrammar", FORMAT_VERSION)
+    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, Any]]:
+        document = read_json_model(path, cls._file_kind)
+        return document.get("kind"), document.get("format_version"), document
+
+    @classmethod
+    def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> ActionGrammar:
         try:
             grammar = cls(smoothing=float(document["smoothing"]))
             grammar.symbols_ = [_clean_symbol(s) for s in document["symbols"]]

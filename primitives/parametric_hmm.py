@@ -27,8 +27,8 @@ transmat_                (K, K)               transition matrix (rows sum to 1)
 mean_bar_                (K, D)               state means at phi = 0
 W_                       (K, D, p)            effect-to-mean matrices
 covars_                  (K, D, D) or (K, D)  covariances ("full") or variances ("diag")
-train_params_            (S, p), S >= 1       effects of the training sequences (restarts of estimate_params;
-                                              synthesize warns far outside their range)
+train_params_            (S, p), S >= 1       effects phi of the training sequences (attribute ``train_phi_``:
+                                              restarts of estimate_phi; synthesize warns far outside their range)
 log_likelihood_history_  (I,)                 training log-likelihood per EM iteration
 converged_               () bool              whether training stopped on ``tol``
 =======================  ===================  ===============================================================
@@ -42,12 +42,12 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import warnings
 import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -56,9 +56,9 @@ from hoap_actions.errors import (
     ExtrapolationWarning,
     IdentifiabilityError,
     InvalidInputError,
-    NotFittedError,
 )
 from hoap_actions.outputs import claimed_file
+from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.hmm_math import (
     forward_backward_padded,
     log_gaussian_density_padded,
@@ -89,6 +89,8 @@ _OTHER_SIGNATURES = (
 )
 _SNIFF_BYTES = 16
 _ACCEPTED_FILES = "ParametricHMM.load reads the .npz archives written by ParametricHMM.save"
+# Entries stored under another name than their attribute (the file format is older than the name phi).
+_ATTRIBUTE_OF_ENTRY = {"train_params_": "train_phi_"}
 _PROBABILITY_TOLERANCE = 1e-6  # |sum - 1| of a saved distribution; EM's normalisation errs by ~1e-16
 _SYMMETRY_TOLERANCE = 1e-8  # largest |S - S^T| relative to the largest |S| (EM's covariances are exactly symmetric)
 # synthesize warns (ExtrapolationWarning) when a component of phi lies beyond the training effects'
@@ -111,12 +113,12 @@ class EMReport:
 
 @dataclass(frozen=True, eq=False)
 class Recognition:
-    """Result of :func:`recognize`: the best class, its effect estimate, and every class's log-likelihood."""
+    """Result of :func:`recognize`: the best class id, its effect estimate, and every class's log-likelihood."""
 
-    label: str
+    label: int
     phi: np.ndarray
-    log_likelihoods: Mapping[str, float]
-    phis: Mapping[str, np.ndarray] = field(default_factory=dict)
+    log_likelihoods: Mapping[int, float]
+    phis: Mapping[int, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -144,7 +146,7 @@ class _Batch:
         return cls(padded, second_moments(padded, covariance_type), lengths, offset, phi)
 
 
-class ParametricHMM:
+class ParametricHMM(Estimator):
     """Gaussian HMM whose state means are linear in an effect parameter phi (linear PHMM).
 
     Parameters
@@ -173,8 +175,24 @@ class ParametricHMM:
         climbs the log-likelihood plus the prior's log-density, which is what
         ``log_likelihood_history_`` records.
     random_state:
-        Seed or Generator for the random restarts of :meth:`estimate_params`.
+        Seed or Generator for the random restarts of :meth:`estimate_phi`.
+
+    Attributes (after ``fit`` or ``load``)
+    --------------------------------------
+    startprob_, transmat_, mean_bar_, W_, covars_:
+        The learned HMM (module docstring); ``mu_j(phi) = mean_bar_[j] + W_[j] @ phi``.
+    train_phi_:
+        ``(S, p)``: the effects of the training sequences.
+    n_features_in_, phi_dim_:
+        ``D`` and ``p``, the frame and effect dimensions.
+    log_likelihood_history_, monitor_:
+        Training log-likelihood per EM iteration, and an :class:`EMReport`.
     """
+
+    _learned = ("startprob_", "transmat_", "mean_bar_", "W_", "covars_", "train_phi_", "n_features_in_", "phi_dim_")
+    _file_kind = "ParametricHMM"
+    _format_version = FORMAT_VERSION
+    _readable_versions = _READABLE_VERSIONS
 
     def __init__(self, n_states: int = 10, topology: str = "left-right", covariance_type: str = "full",
                  n_iter: int = 50, tol: float = 1e-4, reg_covar: float = 1e-6,
@@ -189,12 +207,6 @@ class ParametricHMM:
         self.random_state = random_state
         self.covars_prior = covars_prior
         self.covars_weight = covars_weight
-
-    def __repr__(self) -> str:
-        return (f"ParametricHMM(n_states={self.n_states!r}, topology={self.topology!r}, "
-                f"covariance_type={self.covariance_type!r}, n_iter={self.n_iter!r}, tol={self.tol!r}, "
-                f"reg_covar={self.reg_covar!r}, random_state={self.random_state!r}, "
-                f"covars_prior={self.covars_prior!r}, covars_weight={self.covars_weight!r})")
 
     # ------------------------------------------------------------------------------- checks
     def _check_hyper_parameters(self) -> None:
@@ -223,11 +235,6 @@ class ParametricHMM:
                                     f"feature) or None; got shape {prior.shape}")
         return prior
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "W_"):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(X, lengths, params) "
-                                 "or ParametricHMM.load(path) first")
-
     @property
     def _left_right(self) -> bool:
         """A chain from the first state to the last (with or without skips)."""
@@ -244,7 +251,7 @@ class ParametricHMM:
         return 1
 
     def _check_phi(self, phi) -> np.ndarray:
-        p = self.n_params_
+        p = self.phi_dim_
         try:
             arr = np.asarray(phi, dtype=np.float64)
         except (TypeError, ValueError) as exc:
@@ -345,8 +352,8 @@ class ParametricHMM:
             self.startprob_ = start / start.sum()
 
     # ------------------------------------------------------------------------------------- fit
-    def fit(self, X, lengths, params) -> ParametricHMM:
-        """Train by extended Baum-Welch on sequences ``X`` (N, D) with ``lengths`` and effects ``params`` (S, p).
+    def fit(self, X, lengths, phi) -> ParametricHMM:
+        """Train by extended Baum-Welch on sequences ``X`` (N, D) with ``lengths`` and their effects ``phi`` (S, p).
 
         The training effects must affinely span R^p (at least p + 1 of them, not all on one
         hyperplane) or W is not identifiable.  Left-right models start from each sequence cut into
@@ -356,7 +363,7 @@ class ParametricHMM:
         """
         self._check_hyper_parameters()
         X, lengths = validate_sequences(X, lengths)
-        phi = _check_params(params, lengths.size)
+        phi = _check_train_phi(phi, lengths.size)
         k = int(self.n_states)
         if self._left_right and lengths.min() < k:
             short = np.flatnonzero(lengths < k)
@@ -368,8 +375,8 @@ class ParametricHMM:
         for name in ("W_", "mean_bar_", "covars_", "transmat_", "startprob_"):
             self.__dict__.pop(name, None)
         self.n_features_in_ = X.shape[1]
-        self.n_params_ = phi.shape[1]
-        self.train_params_ = phi
+        self.phi_dim_ = phi.shape[1]
+        self.train_phi_ = phi
 
         gamma, xi = _equal_parts(lengths, k)
         if self._left_right:
@@ -428,7 +435,7 @@ class ParametricHMM:
     # ----------------------------------------------------------------------------- inference
     def score(self, X, phi) -> float:
         """Log-likelihood of one sequence ``X`` (T, D) under the model at effect ``phi`` (p,)."""
-        self._check_fitted()
+        check_is_fitted(self)
         X = self._check_sequence(X)
         phi = self._check_phi(phi)
         return float(self._score_batch(X, phi[None])[0])
@@ -442,7 +449,7 @@ class ParametricHMM:
 
     def predict(self, X, phi) -> np.ndarray:
         """Most likely state of each frame of ``X`` (T, D) at effect ``phi`` (Viterbi), ``(T,)`` ints."""
-        self._check_fitted()
+        check_is_fitted(self)
         X = self._check_sequence(X)
         phi = self._check_phi(phi)
         offset = self.mean_bar_.mean(axis=0)
@@ -451,7 +458,7 @@ class ParametricHMM:
         with np.errstate(divide="ignore"):
             return viterbi(np.log(self.startprob_), np.log(self.transmat_), logb, [X.shape[0]], self._log_end())[1]
 
-    def estimate_params(self, X, n_restarts: int = 5, n_iter: int = 30, tol: float = 1e-6) -> np.ndarray:
+    def estimate_phi(self, X, n_restarts: int = 5, n_iter: int = 30, tol: float = 1e-6) -> np.ndarray:
         """The effect phi (p,) that maximises the likelihood of one sequence ``X`` (T, D), by EM.
 
         Starts from the mean training effect and ``n_restarts - 1`` random training effects, all run
@@ -461,14 +468,14 @@ class ParametricHMM:
         return self._estimate(X, n_restarts, n_iter, tol)[0]
 
     def _estimate(self, X, n_restarts: int = 5, n_iter: int = 30, tol: float = 1e-6) -> tuple[np.ndarray, float]:
-        self._check_fitted()
+        check_is_fitted(self)
         X = self._check_sequence(X)
         if not (_is_int(n_restarts) and _is_int(n_iter) and n_restarts >= 1 and n_iter >= 1):
             raise InvalidInputError(f"n_restarts and n_iter must be ints >= 1; got {n_restarts!r}, {n_iter!r}")
-        if self.n_params_ == 0:
+        if self.phi_dim_ == 0:
             return np.zeros(0), self.score(X, np.zeros(0))
         rng = np.random.default_rng(self.random_state)
-        train = self.train_params_
+        train = self.train_phi_
         picks = rng.choice(train.shape[0], size=min(int(n_restarts) - 1, train.shape[0]), replace=False)
         phis = np.vstack([train.mean(axis=0, keepdims=True), train[picks]])
         r = phis.shape[0]
@@ -514,7 +521,7 @@ class ParametricHMM:
         :data:`EXTRAPOLATION_MARGIN` of its span at either end) warns with :class:`ExtrapolationWarning`:
         the movement is then an extrapolation of the linear mean model that no demonstration supports.
         """
-        self._check_fitted()
+        check_is_fitted(self)
         if not self._left_right:
             raise InvalidInputError("synthesize needs a left-right model (topology='left-right'); this one is ergodic")
         phi = self._check_phi(phi)
@@ -533,7 +540,7 @@ class ParametricHMM:
 
     def _warn_if_extrapolating(self, phi: np.ndarray) -> None:
         """Warn (for the caller of the public method) if a component of ``phi`` is far outside the training range."""
-        low, high = self.train_params_.min(axis=0), self.train_params_.max(axis=0)
+        low, high = self.train_phi_.min(axis=0), self.train_phi_.max(axis=0)
         margin = EXTRAPOLATION_MARGIN * (high - low)
         far = np.flatnonzero((phi < low - margin) | (phi > high + margin))
         if far.size:
@@ -554,17 +561,12 @@ class ParametricHMM:
         return visit
 
     # ------------------------------------------------------------------------------ files
-    def save(self, path: str | os.PathLike, overwrite: bool = False) -> None:
-        """Write the model to exactly ``path`` in the versioned ``.npz`` format documented in this module.
-
-        An existing file raises DataExistsError unless ``overwrite``; the write goes through
-        :func:`hoap_actions.outputs.claimed_file`, so a crash never leaves half a model behind.
-        """
-        self._check_fitted()
+    def _write(self, path: Path, overwrite: bool) -> None:
+        """Write the versioned ``.npz`` archive documented in this module."""
         seed = self.random_state
         arrays = {
-            "format_version": np.array(FORMAT_VERSION),
-            "kind": np.array("ParametricHMM"),
+            "format_version": np.array(self._format_version),
+            "kind": np.array(self._file_kind),
             "n_states": np.array(int(self.n_states)),
             "topology": np.array(str(self.topology)),
             "covariance_type": np.array(str(self.covariance_type)),
@@ -579,7 +581,7 @@ class ParametricHMM:
             "mean_bar_": self.mean_bar_,
             "W_": self.W_,
             "covars_": self.covars_,
-            "train_params_": self.train_params_,
+            "train_params_": self.train_phi_,
             "log_likelihood_history_": getattr(self, "log_likelihood_history_", np.zeros(0)),
             "converged_": np.array(bool(getattr(self, "monitor_", EMReport((), False, 0)).converged)),
         }
@@ -588,31 +590,29 @@ class ParametricHMM:
                 np.savez(fh, **arrays)
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> ParametricHMM:
-        """Read a model written by :meth:`save`, checked for meaning as well as shape.
-
-        A missing, corrupt, other-kind or other-version file raises DataFileError, and so does one
-        whose learned values a trained model cannot have (probabilities that do not sum to 1,
-        covariances that are not positive definite, ...): they would load and then fail far away.
-        """
-        path = Path(path)
+    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, np.ndarray]]:
+        """The archive's ``kind``, ``format_version`` (as Python values; None if absent) and entries."""
         if not path.is_file():
             raise DataFileError(f"model file {path} does not exist")
         arrays = _read_npz(path)
         kind, version = arrays.get("kind"), arrays.get("format_version")
-        if kind is None or version is None or kind.shape != () or str(kind) != "ParametricHMM":
-            raise DataFileError(f"{path} is not a ParametricHMM file (no format_version/kind entries); "
-                                f"{_ACCEPTED_FILES}")
-        if version.shape != () or version.dtype.kind not in "iu" or int(version) not in _READABLE_VERSIONS:
-            raise DataFileError(f"{path} has format_version {version.tolist()!r}; this version of hoap_actions "
-                                f"reads format_versions {_READABLE_VERSIONS}")
+        return (None if kind is None else kind.tolist()), (None if version is None else version.tolist()), arrays
+
+    @classmethod
+    def _from_file(cls, path: Path, arrays: dict[str, np.ndarray], version: int) -> ParametricHMM:
+        """The model in the entries of a readable archive, checked for meaning as well as shape.
+
+        An archive whose learned values a trained model cannot have (probabilities that do not sum to
+        1, covariances that are not positive definite, ...) raises DataFileError: it would load and
+        then fail far away.
+        """
         try:
             seed = arrays["random_state"]
             model = cls(n_states=int(arrays["n_states"]), topology=str(arrays["topology"]),
                         covariance_type=str(arrays["covariance_type"]), n_iter=int(arrays["n_iter"]),
                         tol=float(arrays["tol"]), reg_covar=float(arrays["reg_covar"]),
                         random_state=int(seed[0]) if seed.size else None)
-            if int(version) >= 2:
+            if version >= 2:
                 prior = np.asarray(arrays["covars_prior"], dtype=np.float64)
                 model.covars_prior = prior if prior.size else None
                 model.covars_weight = float(arrays["covars_weight"])
@@ -638,7 +638,7 @@ class ParametricHMM:
             for name, (value, shape) in learned.items():
                 if value.shape != shape or not np.all(np.isfinite(value)):
                     raise DataFileError(f"{path}: entry {name} has shape {value.shape}, expected {shape} and finite")
-                setattr(model, name, value)
+                setattr(model, _ATTRIBUTE_OF_ENTRY.get(name, name), value)
             model._check_learned_meaning(path)
             history = _entry(arrays, "log_likelihood_history_", 1, path)
             converged = bool(arrays["converged_"])
@@ -647,7 +647,7 @@ class ParametricHMM:
         except (IndexError, TypeError, ValueError) as exc:
             raise DataFileError(f"{path}: missing or malformed entry ({exc})") from exc
         model.n_features_in_ = d
-        model.n_params_ = p
+        model.phi_dim_ = p
         model.log_likelihood_history_ = history
         model.monitor_ = EMReport(tuple(history.tolist()), converged, history.size)
         return model
@@ -661,7 +661,7 @@ class ParametricHMM:
         def bad(name: str, problem: str, accepted: str) -> DataFileError:
             return DataFileError(f"{path}: entry {name} {problem}; accepted: {accepted}")
 
-        if self.train_params_.shape[0] == 0:
+        if self.train_phi_.shape[0] == 0:
             raise bad("train_params_", "is empty", "the (S, p) effects of the S >= 1 training sequences")
         start, trans = self.startprob_, self.transmat_
         if np.any(start < 0) or abs(start.sum() - 1.0) > _PROBABILITY_TOLERANCE:
@@ -757,17 +757,17 @@ def _is_real(value) -> bool:
         and bool(np.isfinite(value))
 
 
-def _check_params(params, n_sequences: int) -> np.ndarray:
+def _check_train_phi(train_phi, n_sequences: int) -> np.ndarray:
     """Training effects as float (S, p), affinely spanning R^p so each W_j is identifiable."""
     try:
-        phi = np.asarray(params, dtype=np.float64)
+        phi = np.asarray(train_phi, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"params must be a numeric array of shape (n_sequences, p); got {exc}") from exc
+        raise InvalidInputError(f"phi must be a numeric array of shape (n_sequences, p); got {exc}") from exc
     if phi.ndim != 2 or phi.shape[0] != n_sequences:
-        raise InvalidInputError(f"params must have shape (n_sequences, p) = ({n_sequences}, p), one effect per "
-                                f"sequence; got shape {phi.shape} (use params.reshape(-1, 1) for a scalar effect)")
+        raise InvalidInputError(f"phi must have shape (n_sequences, p) = ({n_sequences}, p), one effect per "
+                                f"sequence; got shape {phi.shape} (use phi.reshape(-1, 1) for a scalar effect)")
     if not np.all(np.isfinite(phi)):
-        raise InvalidInputError("params must be finite; found NaN or inf")
+        raise InvalidInputError("phi must be finite; found NaN or inf")
     p = phi.shape[1]
     if p and np.linalg.matrix_rank(phi - phi.mean(axis=0)) < p:
         raise IdentifiabilityError(
@@ -793,21 +793,23 @@ def _equal_parts(lengths: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 # -------------------------------------------------------------------------------- recognition
-def recognize(X, models: Mapping[str, ParametricHMM], n_restarts: int = 5) -> Recognition:
+def recognize(X, models: Mapping[int, ParametricHMM], n_restarts: int = 5) -> Recognition:
     """Classify one movement ``X`` (T, D): estimate phi under each class's model, pick the most likely class.
+
+    ``models`` maps class ids (the discovery's ``primitive_id``) to fitted models.
 
     A chain that cannot reach its last state in ``X``'s frames (:attr:`ParametricHMM.min_frames`) cannot
     explain it and scores ``-inf``.
     """
     if not models:
-        raise InvalidInputError("models must map at least one class label to a fitted ParametricHMM")
+        raise InvalidInputError("models must map at least one class id to a fitted ParametricHMM")
     X, _ = validate_sequences(X)
-    scores: dict[str, float] = {}
-    phis: dict[str, np.ndarray] = {}
+    scores: dict[int, float] = {}
+    phis: dict[int, np.ndarray] = {}
     for label, model in models.items():
-        model._check_fitted()
+        check_is_fitted(model)
         if X.shape[0] < model.min_frames:
-            scores[label], phis[label] = -np.inf, np.full(model.n_params_, np.nan)
+            scores[label], phis[label] = -np.inf, np.full(model.phi_dim_, np.nan)
             continue
         phis[label], scores[label] = model._estimate(X, n_restarts=n_restarts)
     best = max(scores, key=scores.__getitem__)
@@ -816,7 +818,7 @@ def recognize(X, models: Mapping[str, ParametricHMM], n_restarts: int = 5) -> Re
     return Recognition(label=best, phi=phis[best], log_likelihoods=scores, phis=phis)
 
 
-def select_n_states(X, lengths, params, candidates: Sequence[int], n_folds: int = 3,
+def select_n_states(X, lengths, phi, candidates: Sequence[int], n_folds: int = 3,
                     random_state: int | np.random.Generator | None = None,
                     **model_kwargs) -> NStatesSelection:
     """Choose ``n_states`` by cross-validation: mean held-out log-likelihood per frame (at the true effects).
@@ -825,7 +827,7 @@ def select_n_states(X, lengths, params, candidates: Sequence[int], n_folds: int 
     Candidates that a fold cannot train (too few frames or effects) score ``-inf``.
     """
     X, lengths = validate_sequences(X, lengths)
-    phi = _check_params(params, lengths.size)
+    phi = _check_train_phi(phi, lengths.size)
     cands = list(candidates)
     if not cands or not all(_is_int(c) and c >= 1 for c in cands):
         raise InvalidInputError(f"candidates must be a non-empty list of ints >= 1; got {candidates!r}")

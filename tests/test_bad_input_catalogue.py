@@ -34,7 +34,7 @@ from hoap_actions.errors import (
 from hoap_actions.outputs import PARTIAL_MARK, claimed_file, claimed_files
 from hoap_actions.primitives.datasets import load_demonstrations, write_demonstrations
 from hoap_actions.primitives.discovery import PrimitiveDiscovery
-from hoap_actions.primitives.discovery_report import OUTPUT_FILES, discover_to_dir
+from hoap_actions.primitives.discovery_files import OUTPUT_FILES, discover_to_dir
 from hoap_actions.primitives.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
 
 PEG = "hoap_actions/PegInsert-v0"
@@ -278,11 +278,11 @@ def no_long_work(monkeypatch):
 
     import hoap_actions.cli as cli_module
     import hoap_actions.envs.recording as recording
-    import hoap_actions.primitives.discovery_report as report
+    import hoap_actions.primitives.discovery_files as discovery_files
 
     monkeypatch.setattr(recording, "_record_tasks", forbidden)
     monkeypatch.setattr(cli_module, "run_episodes", forbidden)
-    monkeypatch.setattr(report, "_discover", forbidden)
+    monkeypatch.setattr(discovery_files, "_discover", forbidden)
 
 
 @pytest.mark.parametrize(
@@ -494,11 +494,12 @@ def test_row18_implausible_object_poses_are_named_by_episode_and_frame(small, tm
 
     with pytest.raises(DataFileError, match=r"edited.h5:episode_00001: O frame 0 has an object coordinate of 1e\+300"):
         discover_to_dir(edited_dataset(small, tmp_path, far_away), tmp_path / "out")
-    objects = [episode.O for episode in load_demonstrations(small)]
-    objects[2] = objects[2].copy()
-    objects[2][9, 3:] += 1e300  # the rotation vector alone: scipy's "zero norm quaternions" before
-    with pytest.raises(InvalidInputError, match=r"trajectories\[2\] frame 9 has a rotation vector of angle"):
-        PrimitiveDiscovery().fit(objects)
+    demos = load_demonstrations(small)
+    X, lengths = np.concatenate([episode.O for episode in demos]), [episode.T for episode in demos]
+    row = sum(lengths[:2]) + 9
+    X[row, 3:] += 1e300  # the rotation vector alone: scipy's "zero norm quaternions" before
+    with pytest.raises(InvalidInputError, match=rf"X demonstration 2 frame 9 \(row {row}\) has a rotation vector"):
+        PrimitiveDiscovery().fit(X, lengths)
 
 
 # ---------------------------------------------------------------------- rows 19-21: the command line

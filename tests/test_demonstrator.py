@@ -30,7 +30,7 @@ from hoap_actions.envs.world import (
 )
 from hoap_actions.errors import DataExistsError, InvalidInputError
 from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.discovery_report import effect_visible_labels
+from hoap_actions.primitives.discovery_evaluation import effect_visible_labels
 from hoap_actions.urdf import urdf_path
 
 SHOULDER, ELBOW, WRIST, INDEX_TIP, KNUCKLE, THUMB_TIP = range(6)

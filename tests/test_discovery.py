@@ -16,15 +16,12 @@ from hoap_actions.primitives.discovery import (
     REMOVE,
     UNKNOWN,
     PrimitiveDiscovery,
-    find_primitives,
-    gaussian_kl,
-    longest_common_substring,
-    merge_gaussians,
-    sparse_viterbi,
-    symmetric_kl_matrix,
 )
 from hoap_actions.primitives.evaluation import boundary_f1
+from hoap_actions.primitives.gaussians import gaussian_kl, merge_gaussians, symmetric_kl_matrix
 from hoap_actions.primitives.grammar import ActionGrammar
+from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
+from hoap_actions.primitives.substrings import find_primitives, longest_common_substring
 
 DIRECTIONS = {"right": (1.0, 0.0), "left": (-1.0, 0.0), "up": (0.0, 1.0), "down": (0.0, -1.0)}
 DISTANCES = (0.04, 0.08, 0.12)  # 2, 4 and 6 spacings of 2 cm: the Fig. 7 P1 / P1 P2 / P1 P2 P3 case
@@ -60,6 +57,11 @@ def push_demo(direction, distance, rng, noise=0.0):
     return poses, markers, labels
 
 
+def stacked(trajectories):
+    """Per-demonstration arrays as the estimator takes them: concatenated, with their lengths."""
+    return np.concatenate(trajectories), [len(t) for t in trajectories]
+
+
 def push_dataset(seed=0, noise=0.0, repeats=1):
     rng = np.random.default_rng(seed)
     keys = [key for _ in range(repeats) for key in product(DIRECTIONS, DISTANCES)]
@@ -70,7 +72,7 @@ def push_dataset(seed=0, noise=0.0, repeats=1):
 @pytest.fixture(scope="module")
 def pushes():
     keys, objects, hands, labels = push_dataset(seed=1, noise=3e-4, repeats=2)
-    model = PrimitiveDiscovery(**TWO_CM, random_state=0).fit(objects, hands)
+    model = PrimitiveDiscovery(**TWO_CM, random_state=0).fit(*stacked(objects), np.concatenate(hands))
     return keys, objects, hands, labels, model
 
 
@@ -278,27 +280,33 @@ def test_classes_carry_effects(pushes):
         for segment in cls.segments:
             track = hands[segment.demo][:, 6:9] if cls.kind != MANIPULATION else objects[segment.demo][:, :3]
             assert segment.source == ("object" if cls.kind == MANIPULATION else "hand")
-            np.testing.assert_allclose(segment.effect, np.r_[track[segment.start], track[segment.end - 1]])
+            np.testing.assert_allclose(segment.phi, np.r_[track[segment.start], track[segment.end - 1]])
         if cls.kind == MANIPULATION:  # every primitive moves the object by about two spacings
-            displacement = np.linalg.norm(cls.effects[:, 3:] - cls.effects[:, :3], axis=1)
+            displacement = np.linalg.norm(cls.phis[:, 3:] - cls.phis[:, :3], axis=1)
             np.testing.assert_allclose(displacement, 0.04, atol=0.012)
-        movements = cls.movements(hands)
-        assert [len(m) for m in movements] == [s.end - s.start for s in cls.segments]
+        X, lengths = cls.movements(*stacked(hands))
+        assert lengths.tolist() == [s.end - s.start for s in cls.segments] and X.shape == (sum(lengths), 18)
+        first = cls.segments[0]
+        np.testing.assert_array_equal(X[: lengths[0]], hands[first.demo][first.start : first.end])
     approach = model.classes_[model.primitive_kinds_.index(APPROACH)]
-    np.testing.assert_allclose(approach.effects[:, :3], np.tile(PARK + 0.02, (len(keys), 1)), atol=1e-9)
+    np.testing.assert_allclose(approach.phis[:, :3], np.tile(PARK + 0.02, (len(keys), 1)), atol=1e-9)
+    with pytest.raises(InvalidInputError, match="lengths"):
+        approach.movements(*stacked(hands[:2]))
 
 
 def test_predict_reproduces_the_training_segmentation(pushes):
     _, objects, _, _, model = pushes
-    for labels, segments in zip(model.predict(objects), model.segmentations_):
+    predicted = model.predict(*stacked(objects))
+    assert len(predicted) == len(objects) and all(labels.dtype.kind == "i" for labels in predicted)
+    for labels, segments in zip(predicted, model.segmentations_):
         expected = np.concatenate([np.full(end - start, pid) for pid, start, end in segments])
         np.testing.assert_array_equal(labels, expected)
 
 
 def test_same_seed_same_result():
     _, objects, hands, _ = push_dataset(seed=7, noise=3e-4)
-    a = PrimitiveDiscovery(**TWO_CM, random_state=3).fit(objects, hands)
-    b = PrimitiveDiscovery(**TWO_CM, random_state=3).fit(objects, hands)
+    a = PrimitiveDiscovery(**TWO_CM, random_state=3).fit(*stacked(objects), np.concatenate(hands))
+    b = PrimitiveDiscovery(**TWO_CM, random_state=3).fit(*stacked(objects), np.concatenate(hands))
     assert a.primitives_ == b.primitives_ and a.segmentations_ == b.segmentations_ and a.classes_ == b.classes_
     np.testing.assert_array_equal(a.joint_means_, b.joint_means_)
     np.testing.assert_array_equal(a.transmat_, b.transmat_)
@@ -320,7 +328,7 @@ def test_rotation_gets_gaussians_and_is_relative_to_the_initial_pose():
     for yaw0 in (0.0, 1.0, -2.0):
         yaw = np.concatenate([np.full(20, yaw0), yaw0 + np.pi / 2 * t, np.full(20, yaw0 + np.pi / 2)])
         demos.append(np.hstack([np.tile([0.1, -0.05, 0.02], (len(yaw), 1)), np.zeros((len(yaw), 2)), yaw[:, None]]))
-    model = PrimitiveDiscovery(**TWO_CM).fit(demos)
+    model = PrimitiveDiscovery(**TWO_CM).fit(*stacked(demos))
     assert model.primitive_kinds_ == [APPROACH, MANIPULATION, REMOVE]
     assert len(model.primitives_[1]) == 4  # pi/2 rad * 5 cm = 7.9 cm of arc: four 2-cm Gaussians
     assert len(set(model.state_sequences_)) == 1  # the same rotation from any initial yaw
@@ -329,7 +337,7 @@ def test_rotation_gets_gaussians_and_is_relative_to_the_initial_pose():
 def test_grammar_of_discovered_primitives():
     """Discovery's class sequences feed the grammar: every demonstration is grammatical."""
     _, objects, hands, _ = push_dataset(seed=3)
-    model = PrimitiveDiscovery(**TWO_CM).fit(objects, hands)
+    model = PrimitiveDiscovery(**TWO_CM).fit(*stacked(objects), np.concatenate(hands))
     sequences = [[pid for pid, *_ in segments] for segments in model.segmentations_]
     grammar = ActionGrammar().fit(sequences)
     assert all(grammar.is_grammatical(seq) for seq in sequences)
@@ -356,7 +364,7 @@ def test_rest_ends_where_the_push_starts_though_the_object_creeps_before():
     y = np.concatenate([settle, settle[-1] + 0.002 * np.arange(1, n_push + 1), np.full(40, settle[-1] + 0.08)])
     poses = np.zeros((len(y), 6))
     poses[:, 1], poses[:, 2] = y, 0.025
-    model = PrimitiveDiscovery(**TWO_CM).fit([poses])
+    model = PrimitiveDiscovery(**TWO_CM).fit(poses, [len(poses)])
     assert abs(model.segmentations_[0][0][2] - n_rest) <= 1
     assert abs(model.segmentations_[0][-1][1] - (n_rest + n_push)) <= 1
 
@@ -366,7 +374,8 @@ def test_results_do_not_change_when_data_and_spacing_scale_together(pushes):
     _, objects, hands, _, model = pushes
     scale = 3.0
     scaled = [np.hstack([o[:, :3] * scale, o[:, 3:]]) for o in objects]
-    big = PrimitiveDiscovery(spacing=0.02 * scale, threshold=2.0, rotation_radius=0.05 * scale).fit(scaled, hands)
+    big = PrimitiveDiscovery(spacing=0.02 * scale, threshold=2.0, rotation_radius=0.05 * scale)
+    big.fit(*stacked(scaled), np.concatenate(hands))
     assert big.primitives_ == model.primitives_ and big.segmentations_ == model.segmentations_
     assert model.covariance_floor == pytest.approx(0.02**2 / 48)
     assert PrimitiveDiscovery(reg_covar=1e-6).covariance_floor == 1e-6
@@ -375,8 +384,8 @@ def test_results_do_not_change_when_data_and_spacing_scale_together(pushes):
 def test_predict_on_a_motion_no_demonstration_showed():
     """A model of still objects has no motion states: the masked decoding is impossible and falls back."""
     _, objects, _, _ = push_dataset(seed=2)
-    model = PrimitiveDiscovery(**TWO_CM).fit([np.tile(objects[0][:1], (30, 1))])
-    (labels,) = model.predict([objects[0]])
+    model = PrimitiveDiscovery(**TWO_CM).fit(np.tile(objects[0][:1], (30, 1)), [30])
+    (labels,) = model.predict(objects[0], [len(objects[0])])
     assert set(labels.tolist()) <= {0, UNKNOWN} and labels[0] == 0
 
 
@@ -385,7 +394,7 @@ def test_predict_on_a_motion_no_demonstration_showed():
 
 def test_single_demonstration_is_approach_one_manipulation_remove():
     _, objects, hands, _ = push_dataset(seed=2)
-    model = PrimitiveDiscovery(**TWO_CM).fit(objects[2:3], hands[2:3])
+    model = PrimitiveDiscovery(**TWO_CM).fit(objects[2], [len(objects[2])], hands[2])
     assert model.primitive_kinds_ == [APPROACH, MANIPULATION, REMOVE]
     assert len(model.primitives_[1]) == 6  # 12 cm: nothing to compare with, so one primitive
     assert [pid for pid, *_ in model.segmentations_[0]] == [0, 1, 2]
@@ -394,57 +403,77 @@ def test_single_demonstration_is_approach_one_manipulation_remove():
 def test_object_that_never_moves_is_all_approach():
     _, objects, hands, _ = push_dataset(seed=2)
     still = np.tile(objects[0][:1], (40, 1))
-    model = PrimitiveDiscovery().fit([still])
+    model = PrimitiveDiscovery().fit(still, [40])
     assert model.primitive_kinds_ == [APPROACH] and model.segmentations_ == [[(0, 0, 40)]]
-    mixed = PrimitiveDiscovery().fit([still, objects[0]], [hands[0][:40], hands[0]])
+    mixed = PrimitiveDiscovery().fit(*stacked([still, objects[0]]), np.concatenate([hands[0][:40], hands[0]]))
     assert mixed.segmentations_[0] == [(0, 0, 40)]
     assert [mixed.primitive_kinds_[p] for p, *_ in mixed.segmentations_[1]] == [APPROACH, MANIPULATION, REMOVE]
-    single_frame = PrimitiveDiscovery().fit([objects[0][:1]])
+    single_frame = PrimitiveDiscovery().fit(objects[0][:1], [1])
     assert single_frame.segmentations_ == [[(0, 0, 1)]]
 
 
 def test_without_hands_stationary_effects_use_the_object():
     _, objects, _, _ = push_dataset(seed=2)
-    model = PrimitiveDiscovery().fit(objects[:3])
+    model = PrimitiveDiscovery().fit(*stacked(objects[:3]))
     approach = model.classes_[0]
     assert approach.kind == APPROACH and {s.source for s in approach.segments} == {"object"}
-    np.testing.assert_allclose(approach.effects[:, :3], [o[0, :3] for o in objects[:3]])
+    np.testing.assert_allclose(approach.phis[:, :3], [o[0, :3] for o in objects[:3]])
 
 
 @pytest.mark.parametrize(
-    "trajectories, message",
+    "X, lengths, message",
     [
-        ([], "empty"),
-        ([np.zeros((10, 3))], r"shape \(T, 6\)"),
-        ([np.zeros(6)], r"shape \(T, 6\)"),
-        ([np.zeros((0, 6))], "T >= 1"),
-        ([np.full((10, 6), np.nan)], "NaN"),
-        (np.zeros((10, 6)), "list"),
-        ([np.array([["a"] * 6])], "not numeric"),
+        (np.zeros((0, 6)), [], "at least one sample"),
+        (np.zeros((10, 3)), [10], r"6 columns"),
+        (np.zeros(6), [1], "2-D"),
+        (np.full((10, 6), np.nan), [10], "NaN"),
+        ([np.zeros((10, 6)), np.zeros((5, 6))], [10, 5], "concatenated"),
+        (np.array([["a"] * 6]), [1], "numeric"),
+        (np.zeros((10, 6)), [4, 4], "sum to the number of rows of X \\(10\\); they sum to 8"),
+        (np.zeros((10, 6)), [10, 0], "every length must be >= 1"),
+        (np.zeros((10, 6)), [5.5, 4.5], "integers"),
+        (np.zeros((10, 6)), [], "non-empty"),
+        (np.zeros((10, 6)), [[10]], "1-D"),
     ],
 )
-def test_bad_trajectories(trajectories, message):
+def test_bad_poses_and_lengths(X, lengths, message):
     with pytest.raises(InvalidInputError, match=message):
-        PrimitiveDiscovery().fit(trajectories)
+        PrimitiveDiscovery().fit(X, lengths)
+
+
+def test_implausible_poses_are_named_by_demonstration_frame_and_row():
+    X = np.zeros((30, 6))
+    X[17, 0] = 1e6
+    with pytest.raises(InvalidInputError, match=r"X demonstration 1 frame 7 \(row 17\) has an object coordinate"):
+        PrimitiveDiscovery().fit(X, [10, 20])
+    X[17, 0], X[25, 3:] = 0.0, 1e3
+    with pytest.raises(InvalidInputError, match=r"X demonstration 1 frame 15 \(row 25\) has a rotation vector"):
+        PrimitiveDiscovery().fit(X, [10, 20])
 
 
 def test_bad_hands_and_parameters():
     _, objects, hands, _ = push_dataset(seed=2)
-    with pytest.raises(InvalidInputError, match="hand trajectories"):
-        PrimitiveDiscovery().fit(objects[:2], hands[:1])
-    with pytest.raises(InvalidInputError, match="frames"):
-        PrimitiveDiscovery().fit(objects[:1], [hands[0][:-1]])
-    with pytest.raises(InvalidInputError, match=r"\(T, 18\)"):
-        PrimitiveDiscovery().fit(objects[:1], [hands[0][:, :9]])
+    X, lengths = stacked(objects[:2])
+    H = np.concatenate(hands[:2])
+    with pytest.raises(InvalidInputError, match=r"H must have shape \(N, 18\)"):
+        PrimitiveDiscovery().fit(X, lengths, H[:-1])
+    with pytest.raises(InvalidInputError, match=r"\(N, 18\)"):
+        PrimitiveDiscovery().fit(X, lengths, H[:, :9])
+    with pytest.raises(InvalidInputError, match="NaN"):
+        PrimitiveDiscovery().fit(X, lengths, np.where(np.arange(len(H))[:, None] == 3, np.nan, H))
+    far = H.copy()
+    far[len(objects[0]) + 2, 4] = 500.0
+    with pytest.raises(InvalidInputError, match=r"H demonstration 1 frame 2 .* marker coordinate"):
+        PrimitiveDiscovery().fit(X, lengths, far)
     for params in ({"spacing": 0.0}, {"threshold": -1.0}, {"reg_covar": float("nan")}, {"hand_marker": 6},
                    {"spacing": "2 cm"}):
         with pytest.raises(InvalidInputError, match=next(iter(params))):
-            PrimitiveDiscovery(**params).fit(objects[:1])
+            PrimitiveDiscovery(**params).fit(*stacked(objects[:1]))
 
 
 def test_not_fitted():
-    with pytest.raises(NotFittedError):
-        PrimitiveDiscovery().predict([np.zeros((5, 6))])
+    with pytest.raises(NotFittedError, match="this PrimitiveDiscovery is not fitted yet: call fit"):
+        PrimitiveDiscovery().predict(np.zeros((5, 6)), [5])
     with pytest.raises(NotFittedError):
         PrimitiveDiscovery().save("unused.json")
 
@@ -463,7 +492,7 @@ def test_save_load_round_trip(pushes, tmp_path):
     assert loaded.primitives_ == model.primitives_ and loaded.segmentations_ == model.segmentations_
     assert loaded.classes_ == model.classes_ and loaded.state_sequences_ == model.state_sequences_
     np.testing.assert_array_equal(loaded.joint_covars_, model.joint_covars_)
-    for a, b in zip(loaded.predict(objects[:3]), model.predict(objects[:3])):
+    for a, b in zip(loaded.predict(*stacked(objects[:3])), model.predict(*stacked(objects[:3]))):
         np.testing.assert_array_equal(a, b)
     with pytest.raises(DataExistsError):
         model.save(path)

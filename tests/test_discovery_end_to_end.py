@@ -18,13 +18,9 @@ from hoap_actions.primitives.datasets import (
     write_demonstrations,
 )
 from hoap_actions.primitives.discovery import PrimitiveDiscovery
-from hoap_actions.primitives.discovery_report import (
-    OUTPUT_FILES,
-    action_groups,
-    discover_to_dir,
-    effect_visible_labels,
-    evaluate_discovery,
-)
+from hoap_actions.primitives.discovery_evaluation import effect_visible_labels, evaluate_discovery
+from hoap_actions.primitives.discovery_files import OUTPUT_FILES, discover_to_dir
+from hoap_actions.primitives.discovery_groups import action_groups
 from hoap_actions.primitives.grammar import ActionGrammar
 
 # Measured on the small preset (seed 0, labels_version 2: grasp in the approach, release in the remove):
@@ -34,6 +30,11 @@ from hoap_actions.primitives.grammar import ActionGrammar
 # changes in the demonstrator.
 MIN_FRAME_ACCURACY = 0.83
 MIN_FRACTION_OF_CEILING = 0.93
+
+
+def poses(demos) -> tuple[np.ndarray, list[int]]:
+    """The demonstrations' object poses as the discovery takes them: concatenated, with their lengths."""
+    return np.concatenate([e.O for e in demos]), [e.T for e in demos]
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +47,7 @@ def small(tmp_path_factory):
 
 def test_small_preset_end_to_end_against_hidden_labels(small):
     _, demos = small
-    model = PrimitiveDiscovery().fit([e.O for e in demos], [e.H.reshape(e.T, -1) for e in demos])
+    model = PrimitiveDiscovery().fit(*poses(demos), np.concatenate([e.H.reshape(e.T, -1) for e in demos]))
     result = evaluate_discovery(model, demos)
     assert result["true_phases"] == ["approach", "push-left", "move-forward", "rotate", "remove"]
     assert result["phases_missed"] == []
@@ -65,7 +66,7 @@ def test_small_preset_end_to_end_against_hidden_labels(small):
 
 def test_evaluation_needs_the_demonstrations_the_model_was_fitted_on(small):
     _, demos = small
-    model = PrimitiveDiscovery().fit([e.O for e in demos][:2])
+    model = PrimitiveDiscovery().fit(*poses(list(demos)[:2]))
     with pytest.raises(InvalidInputError, match="fitted on 2"):
         evaluate_discovery(model, demos)
     with pytest.raises(NotFittedError):
