@@ -41,7 +41,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -52,14 +51,17 @@ from tqdm import tqdm
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
 from hoap_actions.outputs import claimed_directory
+from hoap_actions.primitives.base import Estimator, check_is_fitted
+from hoap_actions.primitives.connected_recognition import ChainedHMM, chain_classes, exit_probability
 from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.effect_continuity import effect_gap_scores
 from hoap_actions.primitives.grammar import ActionGrammar
 from hoap_actions.primitives.parametric_hmm import ParametricHMM, recognize
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MODELS_FILES", "ActionModels", "ClassModel", "SegmentRecognition", "marker_features"]
+__all__ = ["MODELS_FILES", "ActionModels", "ClassModel", "DecodedSegment", "SegmentRecognition", "marker_features"]
 
 FORMAT_VERSION = 1
 KIND = "ActionModels"
@@ -91,6 +93,7 @@ class ClassModel:
     phmm: ParametricHMM
     centre: np.ndarray  # (6,) mean training effect
     basis: np.ndarray  # (6, r) principal directions the PHMM's reduced phi runs along
+    exit_probability: float  # per frame, of leaving the chain's last state (connected recognition)
 
     def full_phi(self, reduced: np.ndarray) -> np.ndarray:
         return self.centre + self.basis @ reduced
@@ -112,7 +115,17 @@ class SegmentRecognition:
     phis: Mapping[int, np.ndarray]
 
 
-class ActionModels:
+@dataclass(frozen=True)
+class DecodedSegment:
+    """A piece of a decoded movement: frames ``[start, end)`` perform class ``class_id`` with effect ``phi`` (6,)."""
+
+    class_id: int
+    start: int
+    end: int
+    phi: np.ndarray
+
+
+class ActionModels(Estimator):
     """Learn, recognise and synthesise with one PHMM per discovered class (module docstring: the choices).
 
     Args:
@@ -128,6 +141,11 @@ class ActionModels:
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
     ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``.
     """
+
+    _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_")
+    _file_kind = KIND
+    _format_version = FORMAT_VERSION
+    _readable_versions = (FORMAT_VERSION,)
 
     def __init__(
         self,
@@ -152,14 +170,6 @@ class ActionModels:
         self.n_restarts = n_restarts
         self.unexplained_penalty = unexplained_penalty
         self.continuity_weight = continuity_weight
-
-    def get_params(self) -> dict:
-        return {name: getattr(self, name) for name in (
-            "covariance_type", "reg_covar", "covars_weight", "effect_tol", "max_states", "state_fraction",
-            "velocity", "n_restarts", "unexplained_penalty", "continuity_weight")}
-
-    def __repr__(self) -> str:
-        return f"ActionModels({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"
 
     def _check_params(self) -> None:
         def number(name: str, low: float, high: float = math.inf, low_open: bool = False) -> None:
@@ -253,12 +263,10 @@ class ActionModels:
             n_states=n_states, covariance_type=self.covariance_type, reg_covar=self.reg_covar, n_iter=100,
             tol=1e-3, random_state=0, covars_prior=covars_prior, covars_weight=self.covars_weight,
         )
-        phmm.fit(np.concatenate(movements), lengths, (phis - centre) @ basis)
-        return ClassModel(int(cls.primitive_id), str(cls.kind), phmm, centre, basis)
-
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "classes_"):
-            raise NotFittedError("these ActionModels are not fitted; call fit(...) or ActionModels.load(directory)")
+        reduced = (phis - centre) @ basis
+        phmm.fit(np.concatenate(movements), lengths, reduced)
+        leave = exit_probability(phmm, movements, reduced)
+        return ClassModel(int(cls.primitive_id), str(cls.kind), phmm, centre, basis, leave)
 
     # ----------------------------------------------------------------------------- synthesis
     def synthesize(self, class_id: int, phi: np.ndarray, n_frames: int | None = None) -> np.ndarray:
@@ -271,7 +279,7 @@ class ActionModels:
         return X[:, : 3 * len(self.marker_names_)].reshape(len(X), -1, 3)
 
     def _class(self, class_id: int) -> ClassModel:
-        self._check_fitted()
+        check_is_fitted(self)
         try:
             return self.classes_[int(class_id)]
         except (KeyError, TypeError, ValueError):
@@ -280,7 +288,7 @@ class ActionModels:
     # ---------------------------------------------------------------------------- recognition
     def features(self, H: np.ndarray) -> np.ndarray:
         """The model input of one movement's markers ``(T, M, 3)`` or ``(T, 3M)``, checked against the models."""
-        self._check_fitted()
+        check_is_fitted(self)
         H = np.asarray(H, dtype=float)
         markers = len(self.marker_names_)
         if H.ndim not in (2, 3) or H.reshape(len(H), -1).shape[1] != 3 * markers or len(H) < 1:
@@ -340,19 +348,46 @@ class ActionModels:
             for label, rec in zip(labels, recognitions)
         ]
 
+    def decode(self, H: np.ndarray) -> list[DecodedSegment]:
+        """Cut a whole movement (its markers alone) into primitives and recognise each, with its phi.
+
+        Connected recognition (:mod:`~hoap_actions.primitives.connected_recognition`): the classes'
+        chains joined by the grammar, Viterbi over every frame; then each segment's phi estimated
+        with its class's PHMM. A movement no grammatical path explains gives an empty list.
+        """
+        X = self.features(H)
+        labels, score = self.chained().viterbi(self.chained().log_emissions(X))
+        if not np.isfinite(score):
+            return []
+        decoded = []
+        ids = self.chained().class_ids
+        for index, start, end in runs(labels):
+            model = self.classes_[int(ids[index])]
+            phi = (model.full_phi(model.phmm.estimate_phi(X[start:end], n_restarts=self.n_restarts))
+                   if end - start >= model.phmm.min_frames else np.full(EFFECT_DIM, np.nan))
+            decoded.append(DecodedSegment(model.class_id, int(start), int(end), phi))
+        return decoded
+
+    def chained(self) -> ChainedHMM:
+        """The classes' chains joined by the grammar, over the training effects (built once)."""
+        check_is_fitted(self)
+        if getattr(self, "_chained", None) is None:
+            ids = list(self.classes_)
+            self._chained = chain_classes([self.classes_[c].phmm for c in ids], ids,
+                                          [self.classes_[c].exit_probability for c in ids], self.grammar_)
+        return self._chained
+
     # ----------------------------------------------------------------------------------- files
-    def save(self, directory: str | os.PathLike, overwrite: bool = False) -> Path:
-        """Write the models directory (:data:`MODELS_FILES` and ``class_<id>.npz``); it appears whole
-        once complete, and an existing one is replaced only with ``overwrite``."""
-        self._check_fitted()
-        with claimed_directory(directory, overwrite, what="action models") as staging:
+    def _write(self, path: Path, overwrite: bool) -> None:
+        """A models directory (:data:`MODELS_FILES` and ``class_<id>.npz``) that appears whole once
+        complete; an existing one is replaced only with ``overwrite``."""
+        with claimed_directory(path, overwrite, what="action models") as staging:
             self.write_files(staging)
-        return Path(directory)
 
     def write_files(self, folder: Path) -> None:
         """Write the models' files into ``folder``, an empty directory the caller has claimed
         (:func:`hoap_actions.outputs.claimed_directory`); use :meth:`save` otherwise."""
-        self._check_fitted()
+        check_is_fitted(self)
         folder = Path(folder)
         manifest = {
             "format_version": FORMAT_VERSION,
@@ -363,7 +398,7 @@ class ActionModels:
             "covars_prior": None if self.covars_prior_ is None else self.covars_prior_.tolist(),
             "classes": [
                 {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
-                 "effect_basis": m.basis.tolist()}
+                 "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability}
                 for cid, m in self.classes_.items()
             ],
         }
@@ -374,19 +409,23 @@ class ActionModels:
             model.phmm.save(folder / f"class_{cid}.npz")
 
     @classmethod
-    def load(cls, directory: str | os.PathLike) -> ActionModels:
-        """Read a models directory written by :meth:`save`; every file is validated, and a missing,
-        partial, other-version or inconsistent one raises DataFileError naming the file and entry."""
-        directory = Path(directory)
-        if not directory.is_dir():
-            raise DataFileError(f"no models directory at {directory}; make one with `hoap-actions learn`")
+    def _read(cls, path: Path) -> tuple[object, object, dict]:
+        if not path.is_dir():
+            raise DataFileError(f"no models directory at {path}; make one with `hoap-actions learn`")
+        manifest = _read_manifest(path / MANIFEST)
+        return manifest.get("kind"), manifest.get("format_version"), manifest
+
+    @classmethod
+    def _from_file(cls, path: Path, manifest: dict, version: int) -> ActionModels:
+        """The models of the directory ``path``: every file validated, each error naming its file and entry."""
+        directory = path
         manifest_path = directory / MANIFEST
-        manifest = _read_manifest(manifest_path)
-        models = cls(**manifest["params"])
+        _check_manifest(manifest_path, manifest)
         try:
+            models = cls(**manifest["params"])
             models._check_params()
-        except InvalidInputError as exc:
-            raise DataFileError(f"{manifest_path}: entry params: {exc}") from None
+        except (TypeError, InvalidInputError) as exc:
+            raise DataFileError(f"{manifest_path}: entry params: {exc}; accepted: {cls._param_names()}") from None
         models.fps_ = _positive(manifest_path, "fps", manifest["fps"])
         models.marker_names_ = tuple(_strings(manifest_path, "marker_names", manifest["marker_names"]))
         width = (2 if models.velocity else 1) * 3 * len(models.marker_names_)
@@ -409,7 +448,10 @@ class ActionModels:
                     f"{directory / entry['file']}: the model has {phmm.mean_bar_.shape[1]} features and "
                     f"{phmm.W_.shape[2]} effect directions; the manifest says {width} and {basis.shape[1]}"
                 )
-            classes[entry["id"]] = ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis)
+            leave = entry.get("exit_probability")
+            if isinstance(leave, bool) or not isinstance(leave, (int, float)) or not 0.0 < leave <= 1.0:
+                raise DataFileError(f"{where}: exit_probability must be a probability in (0, 1]; got {leave!r}")
+            classes[entry["id"]] = ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis, float(leave))
         known = {c.primitive_id for c in models.discovery_.classes_}
         if set(classes) != known or set(models.grammar_.symbols_) - set(classes):
             raise DataFileError(
@@ -457,16 +499,17 @@ def _read_manifest(path: Path) -> dict:
         raise DataFileError(f"{path} is missing: a models directory holds {', '.join(MODELS_FILES)} and class_<id>.npz") from None
     except (OSError, ValueError) as exc:
         raise DataFileError(f"{path} is not a readable JSON manifest: {exc}") from None
-    if not isinstance(document, dict) or document.get("kind") != KIND:
-        raise DataFileError(f"{path} is not an {KIND} manifest (its kind is {document.get('kind') if isinstance(document, dict) else None!r})")
-    if document.get("format_version") != FORMAT_VERSION:
-        raise DataFileError(f"{path}: format_version {document.get('format_version')!r}; this code reads {FORMAT_VERSION}")
+    if not isinstance(document, dict):
+        raise DataFileError(f"{path} is not an {KIND} manifest (a JSON object with kind {KIND!r})")
+    return document
+
+
+def _check_manifest(path: Path, document: dict) -> None:
     for key in ("params", "fps", "marker_names", "covars_prior", "classes"):
         if key not in document:
             raise DataFileError(f"{path}: entry {key} is missing")
     if not isinstance(document["params"], dict) or not isinstance(document["classes"], list) or not document["classes"]:
         raise DataFileError(f"{path}: params must be an object and classes a non-empty list")
-    return document
 
 
 def _positive(path: Path, name: str, value: object) -> float:

@@ -94,7 +94,8 @@ def test_marker_features_append_the_displacement_over_a_tenth_of_a_second():
 
 def test_save_and_load_give_the_same_recognitions(small, tmp_path):
     demos, discovery, models, _ = small
-    path = models.save(tmp_path / "models")
+    path = tmp_path / "models"
+    models.save(path)
     loaded = ActionModels.load(path)
     assert loaded.get_params() == models.get_params()
     piece = pieces_of(demos, discovery, 1)[1]
@@ -107,7 +108,8 @@ def test_save_and_load_give_the_same_recognitions(small, tmp_path):
 
 @pytest.fixture
 def saved(small, tmp_path):
-    path = small[2].save(tmp_path / "models")
+    path = tmp_path / "models"
+    small[2].save(path)
     return path
 
 
@@ -127,12 +129,16 @@ def edit_manifest(path, change):
         (lambda p: edit_manifest(p, lambda m: m.update(format_version=99)), "format_version 99"),
         (lambda p: edit_manifest(p, lambda m: m.update(fps=-1)), "entry fps must be a positive number"),
         (lambda p: edit_manifest(p, lambda m: m["params"].update(state_fraction=7)), "entry params: state_fraction"),
+        (lambda p: edit_manifest(p, lambda m: m["params"].update(colour="red")), "entry params: .*accepted"),
+        (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(exit_probability=0)), "exit_probability must be"),
+        (lambda p: edit_manifest(p, lambda m: m.update(kind="Other")), "not a ActionModels file"),
         (lambda p: edit_manifest(p, lambda m: m["classes"].pop()), "do not match the discovery"),
         (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(effect_centre=[0, 1])), "effect_centre must be"),
         (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(effect_basis=[[0.0]] * 6)), "effect directions"),
         (lambda p: (p / MANIFEST).write_text("{nonsense"), "not a readable JSON manifest"),
     ],
     ids=["missing-dir", "no-manifest", "missing-class", "no-grammar", "other-version", "bad-fps", "bad-params",
+         "unknown-param", "bad-exit", "other-kind",
          "class-dropped", "bad-centre", "basis-mismatch", "not-json"],
 )
 def test_load_rejects_missing_partial_other_version_and_edited_directories(saved, damage, message):
@@ -153,7 +159,7 @@ def test_bad_inputs_name_what_is_accepted(small):
         models.recognize(np.zeros((40, 5, 3)))
     with pytest.raises(InvalidInputError, match="finite"):
         models.recognize(np.full((40, 6, 3), np.nan))
-    with pytest.raises(NotFittedError, match="not fitted"):
+    with pytest.raises(NotFittedError, match="ActionModels is not fitted"):
         ActionModels().recognize(np.zeros((40, 6, 3)))
     with pytest.raises(InvalidInputError, match="state_fraction must be a number in"):
         ActionModels(state_fraction=0).fit(np.zeros((10, 18)), [10], discovery, 100.0)
