@@ -2,7 +2,7 @@
 
 A grid of spacing (m of arc length per Gaussian) x threshold (nats of symmetrised KL for merging)
 on the ``paper`` preset; for each cell: action groups found (against the true actions), frame
-accuracy (many-to-one and one-to-one mapping, see ``discovery_report``), edit score, boundary F1.
+accuracy (many-to-one and one-to-one mapping, see ``discovery_evaluation``), edit score, boundary F1.
 Heat maps in ``benchmarks/results/discovery_sweep.png``; every number in ``discovery_sweep.json``.
 A cell is marked when it recovers the paper's Fig. 7: as many groups as true actions, every true
 phase recovered and every manipulation group mapped to a manipulation and pure (> 99 % of its frames
