@@ -7,8 +7,14 @@ classification together, from the arm markers alone.
 
 A class's PHMM needs its effect phi, which is unknown while the movement is being cut. Each state's
 Gaussian is therefore taken over the class's training effects: mean ``mean_bar_j + W_j mean(phi)``,
-variance ``var_j + diag(W_j cov(phi) W_j^T)`` (the exact marginal's diagonal). Phi is estimated
-afterwards, per segment, with the class's PHMM (:meth:`ActionModels.decode`).
+variance ``var_j + diag(W_j cov(phi) W_j^T)`` (the exact marginal's diagonal), on the features a
+caller selects (``features``). Phi is estimated afterwards, per segment, with the class's PHMM
+(:meth:`ActionModels.decode`).
+
+``stay_weight`` raises every self-transition probability to that power: a left-right chain's
+geometric state durations are heavy-tailed, and a piece of a push stretched over two pieces' frames
+then costs too little against the two pieces (the last piece of a 15 cm push was merged into the
+one before it).
 
 Leaving a chain: a left-right PHMM's last state keeps its frames for good, so the probability of
 leaving it is measured on the class's training segments (frames aligned to the last state per
@@ -71,6 +77,27 @@ class ChainedHMM:
         const = -0.5 * (np.log(2.0 * np.pi * self.variances).sum(axis=1) + np.einsum("sd,sd,sd->s", self.means, self.means, precision))
         return -0.5 * (X * X) @ precision.T + X @ (self.means * precision).T + const
 
+    def class_scores(self, log_emissions: np.ndarray) -> np.ndarray:
+        """Each class's best-path log-probability for the whole movement on its own ``(C,)``: its chain
+        from first to last state, no grammar (``-inf`` where the movement is shorter than the chain)."""
+        logb = self._checked(log_emissions)
+        delta = np.full(self.state_class.size, -np.inf)
+        delta[self.first] = 0.0
+        delta += logb[0]
+        shifted = np.empty_like(delta)
+        for t in range(1, len(logb)):
+            shifted[0] = -np.inf
+            np.add(delta[:-1], self.log_next[:-1], out=shifted[1:])
+            np.maximum(delta + self.log_stay, shifted, out=delta)
+            delta += logb[t]
+        return delta[self.last]
+
+    def _checked(self, log_emissions: np.ndarray) -> np.ndarray:
+        logb = np.asarray(log_emissions, dtype=float)
+        if logb.ndim != 2 or logb.shape[1] != self.state_class.size or len(logb) < 1:
+            raise InvalidInputError(f"log_emissions must be (T >= 1, {self.state_class.size}); got {logb.shape}")
+        return logb
+
     def viterbi(self, log_emissions: np.ndarray) -> tuple[np.ndarray, float]:
         """The most likely class index of every frame ``(T,)`` and the path's log-probability.
 
@@ -78,10 +105,8 @@ class ChainedHMM:
         state into a class the grammar allows next, and end in the last state of a class the grammar
         allows last. ``-inf`` (and every frame -1) when no path explains the movement.
         """
-        logb = np.asarray(log_emissions, dtype=float)
+        logb = self._checked(log_emissions)
         T, S = logb.shape
-        if S != self.state_class.size or T < 1:
-            raise InvalidInputError(f"log_emissions must be (T >= 1, {self.state_class.size}); got {logb.shape}")
         n_classes = self.first.size
         how = np.empty((T, S), dtype=np.int8)
         came_from = np.empty((T, n_classes), dtype=np.int32)  # predecessor class of each class's first state
@@ -131,8 +156,14 @@ class ChainedHMM:
 
 
 def chain_classes(phmms: Sequence[ParametricHMM], class_ids: Sequence[int], exit_probabilities: Sequence[float],
-                  grammar: ActionGrammar) -> ChainedHMM:
-    """Join the classes' left-right chains (in ``class_ids`` order) with ``grammar``'s transitions."""
+                  grammar: ActionGrammar, features: Sequence[int] | None = None, stay_weight: float = 1.0) -> ChainedHMM:
+    """Join the classes' left-right chains (in ``class_ids`` order) with ``grammar``'s transitions.
+
+    ``features``: indices of the PHMMs' features the states keep (default all); ``stay_weight``: the
+    power on self-transition probabilities (module docstring).
+    """
+    if not (isinstance(stay_weight, (int, float)) and np.isfinite(stay_weight) and stay_weight > 0):
+        raise InvalidInputError(f"stay_weight must be a positive number; got {stay_weight!r}")
     if not (len(phmms) == len(class_ids) == len(exit_probabilities)) or not phmms:
         raise InvalidInputError("give one PHMM and one exit probability per class id, at least one class")
     if any(p.topology != "left-right" for p in phmms):
@@ -158,6 +189,8 @@ def chain_classes(phmms: Sequence[ParametricHMM], class_ids: Sequence[int], exit
             variances.append(state_vars + spread)
         log_stay = np.concatenate(log_stay)
         log_stay[last] = np.log1p(-np.clip(exit_probabilities, 0.0, 1.0))
+        log_stay = float(stay_weight) * log_stay
+        keep = slice(None) if features is None else np.asarray(features, dtype=np.intp)
         symbols = {int(s): i + 1 for i, s in enumerate(grammar.symbols_)}
         index = [symbols.get(int(c)) for c in class_ids]
         if None in index:
@@ -176,6 +209,6 @@ def chain_classes(phmms: Sequence[ParametricHMM], class_ids: Sequence[int], exit
             log_start=log_a[0, index],
             log_end=log_a[index, end],
             log_grammar=log_a[np.ix_(index, index)],
-            means=np.concatenate(means),
-            variances=np.concatenate(variances),
+            means=np.ascontiguousarray(np.concatenate(means)[:, keep]),
+            variances=np.ascontiguousarray(np.concatenate(variances)[:, keep]),
         )
