@@ -1,4 +1,4 @@
-"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives, learn models.
+"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives, learn and recognise.
 
 Every argument and output path is checked before the long work starts; a mistake is one line on
 stderr and exit status 2, with no traceback. Outputs are claimed at the start
@@ -127,6 +127,32 @@ def _learn(args: argparse.Namespace) -> int:
     return 0
 
 
+def _recognize(args: argparse.Namespace) -> int:
+    from hoap_actions.primitives.action_models import ActionModels
+    from hoap_actions.primitives.datasets import load_demonstrations
+    from hoap_actions.primitives.recognition_eval import recognize_recording
+
+    with contextlib.ExitStack() as outputs:
+        report = outputs.enter_context(claimed_file(args.json, args.overwrite, what="report")) if args.json else None
+        models = ActionModels.load(args.models)
+        demos = load_demonstrations(args.demos)
+        result = recognize_recording(models, demos, jobs=args.jobs, oracle=args.oracle, progress=True)
+        result = {"demos": str(args.demos), "models": str(args.models), **result}
+        if report:
+            report.write_text(json.dumps(result, indent=2) + "\n")
+    oracle = (f"; cuts given: {result['oracle_cut_accuracy']:.1%} of segments" if args.oracle else "")
+    phi = result["phi_error_median_m"]
+    print(
+        f"{result['episodes']} episodes, {result['segments']} segments: frame accuracy {result['frame_accuracy']:.1%}, "
+        f"segment accuracy {result['segment_accuracy']:.1%}, edit score {result['edit_score']:.3f}{oracle}; "
+        f"phi error median {'-' if phi is None else f'{100 * phi:.2f} cm'}; "
+        f"{result['movement_s']:.0f} s of movement in {result['wall_s']:.0f} s"
+    )
+    if args.json:
+        print(f"results: {args.json}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="hoap-actions", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -168,6 +194,16 @@ def build_parser() -> argparse.ArgumentParser:
                        help="a `discover` folder fitted on the same --demos (default: run discovery here)")
     learn.add_argument("--overwrite", action="store_true", help="replace an existing models directory at --out")
     learn.set_defaults(func=_learn)
+
+    rec = sub.add_parser("recognize", help="recognise every episode of a recording from the arm markers alone")
+    rec.add_argument("--demos", type=_path, required=True, help="a recording the models never saw (.h5, from `record`)")
+    rec.add_argument("--models", type=_path, required=True, help="models directory (from `learn`)")
+    rec.add_argument("--json", type=_path, help="write the figures here")
+    rec.add_argument("--jobs", type=_positive_int, default=1, help="worker processes (the figures do not depend on it)")
+    rec.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,
+                     help="also recognise the true segments with their cuts given (slower; default: on)")
+    rec.add_argument("--overwrite", action="store_true", help="replace an existing --json file")
+    rec.set_defaults(func=_recognize)
     return parser
 
 

@@ -196,3 +196,38 @@ def test_learn_command_takes_a_discover_folder_only_of_the_same_demonstrations(s
                  "--discovery", str(tmp_path / "found")]) == 2
     assert "fitted on 4 demonstrations, not on these 8" in capsys.readouterr().err
     assert not (tmp_path / "m2").exists()
+
+
+def test_whole_training_movements_are_cut_and_classified_from_the_markers_alone(small):
+    """Connected recognition on the training episodes with a manipulation: their class sequences, and
+    most frames. (The approach-only episode is one long approach to discovery, whose object never
+    moves, though the hand reaches and withdraws.)"""
+    demos, discovery, models, _ = small
+    right = total = 0
+    for demo, segmentation in enumerate(discovery.segmentations_):
+        if len(segmentation) == 1:
+            continue
+        decoded = models.decode(demos[demo].H)
+        assert [s.class_id for s in decoded] == [pid for pid, *_ in segmentation]
+        assert decoded[0].start == 0 and decoded[-1].end == demos[demo].T
+        truth = np.concatenate([np.full(end - start, pid) for pid, start, end in segmentation])
+        predicted = np.concatenate([np.full(s.end - s.start, s.class_id) for s in decoded])
+        right, total = right + np.sum(truth == predicted), total + len(truth)
+    assert right / total > 0.85
+
+
+def test_recognize_command_gives_the_same_figures_with_one_or_two_workers(small, tmp_path, capsys):
+    demos, discovery, models, path = small
+    models.save(tmp_path / "models")
+    reports = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"r{jobs}.json"
+        assert main(["recognize", "--demos", str(path), "--models", str(tmp_path / "models"), "--json", str(out),
+                     "--jobs", jobs, "--no-oracle"]) == 0
+        reports.append(json.loads(out.read_text()))
+    keys = ("frame_accuracy", "segment_accuracy", "edit_score", "phi_error_median_m", "episodes", "segments")
+    assert {k: reports[0][k] for k in keys} == {k: reports[1][k] for k in keys}
+    assert reports[0]["oracle_cut_accuracy"] is None
+    assert "frame accuracy" in capsys.readouterr().out
+    assert main(["recognize", "--demos", str(path), "--models", str(tmp_path / "nothing")]) == 2
+    assert "no models directory" in capsys.readouterr().err
