@@ -319,7 +319,7 @@ class ActionModels(Estimator):
 
     def _recognize_features(self, X: np.ndarray) -> SegmentRecognition:
         chained = self.chained()
-        marginal = chained.class_scores(chained.log_emissions(X[:, self._connected_features()]))
+        marginal = chained.class_scores(chained.log_emissions(X[:, self.connected_features()]))
         best = [int(chained.class_ids[i]) for i in np.argsort(-marginal)[: self.n_candidates] if np.isfinite(marginal[i])]
         scores = dict.fromkeys(self.classes_, -np.inf)  # classes not among the candidates: ruled out
         if not best:  # shorter than every chain: no class explains it
@@ -372,7 +372,7 @@ class ActionModels(Estimator):
         """
         X = self.features(H)
         chained = self.chained()
-        labels, score = chained.viterbi(chained.log_emissions(X[:, self._connected_features()]))
+        labels, score = chained.viterbi(chained.log_emissions(X[:, self.connected_features()]))
         if not np.isfinite(score):
             return []
         decoded = []
@@ -391,11 +391,12 @@ class ActionModels(Estimator):
             ids = list(self.classes_)
             self._chained = chain_classes([self.classes_[c].phmm for c in ids], ids,
                                           [self.classes_[c].exit_probability for c in ids], self.grammar_,
-                                          self._connected_features(), self.stay_weight)
+                                          self.connected_features(), self.stay_weight)
         return self._chained
 
-    def _connected_features(self) -> np.ndarray:
-        """The displacement features when the models have them (module docstring), else the positions."""
+    def connected_features(self) -> np.ndarray:
+        """Indices of the features connected recognition reads: the displacements when the models have
+        them (module docstring), else the positions."""
         positions = 3 * len(self.marker_names_)
         return np.arange(positions, 2 * positions) if self.velocity else np.arange(positions)
 

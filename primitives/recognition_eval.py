@@ -11,6 +11,10 @@ from its object trajectories (frames it cannot parse are left out):
 - **with the cuts given** (``oracle_cut_accuracy``): the true segments recognised together through
   the grammar (:meth:`ActionModels.decode_segments`): the upper bound that perfect cutting allows.
 
+Baseline, so a reader sees what the chains and the grammar add: every frame on its own takes the class
+of the state whose Gaussian (over the training effects, on the features connected recognition uses)
+explains it best (``baseline_frame_accuracy``, ``baseline_edit_score``).
+
 Effect error (``phi_error_median_m``): mean distance of the estimated initial and final locations to
 the true ones, over the decoded segments whose class is right and that overlap their true segment
 by more than half (its frames and theirs), then the median.
@@ -64,6 +68,8 @@ class EpisodeScores:
     oracle_right: int
     oracle_phi_errors: tuple[float, ...]
     decode_s: float
+    baseline_frames_right: int
+    baseline_edit: float
 
 
 _WORKER: dict = {}
@@ -92,6 +98,7 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
             overlap = min(b, segment.end) - max(a, segment.start)
             if c == segment.class_id and overlap > 0.5 * max(b - a, segment.end - segment.start):
                 errors.append(_phi_error(segment.phi, _true_phi(episode, c, a, b, models)))
+    baseline = _frame_by_frame(models, episode)
     oracle_right, oracle_errors = 0, []
     if _WORKER["oracle"] and true_runs:
         recognised = models.decode_segments([episode.H[a:b] for _, a, b in true_runs])
@@ -109,7 +116,16 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
         oracle_right=oracle_right,
         oracle_phi_errors=tuple(e for e in oracle_errors if np.isfinite(e)),
         decode_s=decode_s,
+        baseline_frames_right=int(np.sum(baseline[known] == truth[known])),
+        baseline_edit=edit_score([v for v, *_ in runs(baseline)], [c for c, *_ in true_runs]),
     )
+
+
+def _frame_by_frame(models: ActionModels, episode: Episode) -> np.ndarray:
+    """The baseline: each frame's class is that of its most likely state, no chain, no grammar."""
+    chained = models.chained()
+    logb = chained.log_emissions(models.features(episode.H)[:, models.connected_features()])
+    return chained.class_ids[chained.state_class[logb.argmax(axis=1)]]
 
 
 def _true_phi(episode: Episode, class_id: int, start: int, end: int, models: ActionModels) -> np.ndarray:
@@ -160,6 +176,8 @@ def recognize_recording(
         "frame_accuracy": sum(s.frames_right for s in scores) / max(frames, 1),
         "segment_accuracy": sum(s.segments_right for s in scores) / max(segments, 1),
         "edit_score": float(np.mean([s.edit for s in scores])),
+        "baseline_frame_accuracy": sum(s.baseline_frames_right for s in scores) / max(frames, 1),
+        "baseline_edit_score": float(np.mean([s.baseline_edit for s in scores])),
         "oracle_cut_accuracy": sum(s.oracle_right for s in scores) / max(segments, 1) if oracle else None,
         "phi_error_median_m": float(np.median(phi_errors)) if phi_errors else None,
         "oracle_cut_phi_error_median_m": float(np.median(oracle_errors)) if oracle_errors else None,
