@@ -1,5 +1,6 @@
-"""Where a benchmark's figures go: a JSON file (under ``benchmarks/results/``) and the software they
-were measured with."""
+"""What every benchmark shares: where its figures go (a JSON file under ``benchmarks/results/``), the
+software they were measured with, the recordings it needs (under ``data/``, made on demand) and how
+a figure's spread over several recordings is reported."""
 
 from __future__ import annotations
 
@@ -9,7 +10,32 @@ import sys
 from pathlib import Path
 
 
-def numeric_environment(blas_threads: int) -> dict:
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def ensure_recording(preset: str, seed: int, data: Path) -> Path:
+    """``data/<preset>-s<seed>.h5``, recorded first if it is not there (same preset and seed, same file)."""
+    path = Path(data) / f"{preset}-s{seed}.h5"
+    if not path.exists():
+        from hoap_actions.envs.recording import record
+
+        record(preset, path, seed=seed)
+    return path
+
+
+def spread(values: list[float]) -> dict:
+    """Mean, standard deviation, 95 % t-interval of the mean, and the values themselves."""
+    import numpy as np
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float)
+    mean = float(x.mean())
+    sd = float(x.std(ddof=1)) if len(x) > 1 else 0.0
+    half = float(stats.t.ppf(0.975, len(x) - 1) * sd / np.sqrt(len(x))) if len(x) > 1 else float("nan")
+    return {"mean": mean, "sd": sd, "ci95": [mean - half, mean + half], "n": len(x), "values": x.tolist()}
+
+
+def numeric_environment(blas_threads: int | None) -> dict:
     """BLAS threads, CPUs, Python and numpy versions: what numeric timings and results depend on."""
     import numpy as np
 
