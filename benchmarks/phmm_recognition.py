@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.models is None:
         with tempfile.TemporaryDirectory() as scratch:
             learned = learn_to_dir(train, Path(scratch) / "models", progress=True)
-            print(learned.report())
+            print(f"learned {learned.report()}")
             models = ActionModels.load(Path(scratch) / "models")
     else:
         models = ActionModels.load(args.models)

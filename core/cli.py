@@ -123,21 +123,22 @@ def _learn(args: argparse.Namespace) -> int:
     from hoap_actions.primitives.learning import learn_to_dir
 
     summary = learn_to_dir(args.demos, args.out, discovery_dir=args.discovery, overwrite=args.overwrite, progress=True)
-    print(summary.report())
+    print(f"{summary.report()}; wrote {args.out}")
     return 0
 
 
 def _recognize(args: argparse.Namespace) -> int:
+    from hoap_actions.default_models import load_default_models
     from hoap_actions.primitives.action_models import ActionModels
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.recognition_eval import recognize_recording
 
     with contextlib.ExitStack() as outputs:
         report = outputs.enter_context(claimed_file(args.json, args.overwrite, what="report")) if args.json else None
-        models = ActionModels.load(args.models)
+        models = ActionModels.load(args.models) if args.models else load_default_models()
         demos = load_demonstrations(args.demos)
         result = recognize_recording(models, demos, jobs=args.jobs, oracle=args.oracle, progress=True)
-        result = {"demos": str(args.demos), "models": str(args.models), **result}
+        result = {"demos": str(args.demos), "models": str(args.models or "shipped default models"), **result}
         if report:
             report.write_text(json.dumps(result, indent=2) + "\n")
     oracle = (f"; cuts given: {result['oracle_cut_accuracy']:.1%} of segments" if args.oracle else "")
@@ -197,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     rec = sub.add_parser("recognize", help="recognise every episode of a recording from the arm markers alone")
     rec.add_argument("--demos", type=_path, required=True, help="a recording the models never saw (.h5, from `record`)")
-    rec.add_argument("--models", type=_path, required=True, help="models directory (from `learn`)")
+    rec.add_argument("--models", type=_path, help="models directory (from `learn`; default: the shipped models, "
+                     "learned from ten `paper` recordings)")
     rec.add_argument("--json", type=_path, help="write the figures here")
     rec.add_argument("--jobs", type=_positive_int, default=1, help="worker processes (the figures do not depend on it)")
     rec.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,

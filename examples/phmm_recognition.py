@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import argparse
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from hoap_actions.envs.recording import record
-from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.learning import learn_to_dir
+from hoap_actions.primitives.learning import learn
 from hoap_actions.primitives.labels import runs
 
 
@@ -48,9 +46,8 @@ def main() -> None:
     test = load_demonstrations(recording(args.test))
     episode = test[args.episode]
 
-    with tempfile.TemporaryDirectory() as scratch:
-        print(learn_to_dir(train, Path(scratch) / "models").report())
-        models = ActionModels.load(Path(scratch) / "models")
+    models, summary = learn(train)
+    print(summary.report())
 
     decoded = models.decode(episode.H)  # cut and classify from the arm markers alone
     truth = models.discovery_.predict(episode.O, [episode.T])[0]  # what discovery says from the object

@@ -25,16 +25,15 @@ from hoap_actions.primitives.discovery import PrimitiveDiscovery
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["LearnSummary", "learn_to_dir", "load_training_demonstrations"]
+__all__ = ["LearnSummary", "learn", "learn_to_dir", "load_training_demonstrations"]
 
 DISCOVERY_MODEL_FILE = "model.json"  # the fitted discovery in a ``hoap-actions discover`` folder
 
 
 @dataclass(frozen=True)
 class LearnSummary:
-    """What :func:`learn_to_dir` made: the classes, their states, how well they fit, how long it took."""
+    """What :func:`learn` made: the classes, their states, how well they fit, how long it took."""
 
-    out_dir: Path
     n_demonstrations: int
     n_frames: int
     n_classes: int
@@ -47,7 +46,7 @@ class LearnSummary:
         return (
             f"{self.n_classes} classes ({self.n_states} states in all) learned from {self.n_demonstrations} "
             f"demonstrations ({self.n_frames} frames): training log-likelihood {self.log_likelihood_per_frame:.1f} "
-            f"nats per frame; discovery {self.discovery_s:.1f} s, PHMMs {self.training_s:.1f} s; wrote {self.out_dir}"
+            f"nats per frame; discovery {self.discovery_s:.1f} s, PHMMs {self.training_s:.1f} s"
         )
 
 
@@ -75,28 +74,39 @@ def learn_to_dir(
     progress: bool = False,
     **params: object,
 ) -> LearnSummary:
-    """Learn action models from the demonstrations in ``demos_paths`` and write them to ``out_dir``.
+    """:func:`learn`, then write the models to the directory ``out_dir``, claimed before anything is read."""
+    with claimed_directory(out_dir, overwrite, what="action models") as staging:
+        models, summary = learn(demos_paths, discovery_dir, progress, **params)
+        models.write_files(staging)
+    logger.info("%s; wrote %s", summary.report(), out_dir)
+    return summary
+
+
+def learn(
+    demos_paths: Sequence[str | os.PathLike],
+    discovery_dir: str | os.PathLike | None = None,
+    progress: bool = False,
+    **params: object,
+) -> tuple[ActionModels, LearnSummary]:
+    """Learn action models from the demonstrations in ``demos_paths``.
 
     ``discovery_dir``: a ``hoap-actions discover`` folder fitted on the same demonstrations (same
     files, same order), to skip discovery. ``params`` go to :class:`ActionModels`.
     """
-    with claimed_directory(out_dir, overwrite, what="action models") as staging:
-        episodes, header = load_training_demonstrations(list(demos_paths))
-        lengths = [e.T for e in episodes]
-        H = np.concatenate([e.H.reshape(e.T, -1) for e in episodes])
-        started = time.perf_counter()
-        if discovery_dir is None:
-            discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in episodes]), lengths, H)
-        else:
-            discovery = _matching_discovery(Path(discovery_dir), lengths)
-        discovered = time.perf_counter()
-        models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress)
-        trained = time.perf_counter()
-        models.write_files(staging)
+    episodes, header = load_training_demonstrations(list(demos_paths))
+    lengths = [e.T for e in episodes]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in episodes])
+    started = time.perf_counter()
+    if discovery_dir is None:
+        discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in episodes]), lengths, H)
+    else:
+        discovery = _matching_discovery(Path(discovery_dir), lengths)
+    discovered = time.perf_counter()
+    models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress)
+    trained = time.perf_counter()
     phmms = [m.phmm for m in models.classes_.values()]
     frames = sum(s.end - s.start for c in discovery.classes_ for s in c.segments)
     summary = LearnSummary(
-        out_dir=Path(out_dir),
         n_demonstrations=len(episodes),
         n_frames=int(sum(lengths)),
         n_classes=len(phmms),
@@ -105,8 +115,7 @@ def learn_to_dir(
         discovery_s=discovered - started,
         training_s=trained - discovered,
     )
-    logger.info(summary.report())
-    return summary
+    return models, summary
 
 
 def _matching_discovery(folder: Path, lengths: list[int]) -> PrimitiveDiscovery:

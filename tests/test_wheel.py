@@ -41,7 +41,7 @@ def wheel(tmp_path_factory) -> Path:
     shutil.copytree(
         REPO,
         src / "repo",
-        ignore=shutil.ignore_patterns(".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", "results"),
+        ignore=shutil.ignore_patterns(".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", "results", "data"),
     )
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run(
