@@ -7,10 +7,9 @@ one process are independent. Quaternions are ``(x, y, z, w)`` as PyBullet gives 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import logging
 import os
+import subprocess
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -58,12 +57,36 @@ def check_image_size(width: object, height: object, what: str = "camera") -> Non
             raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got {value!r}")
 
 
+_X_PROBE = """
+import ctypes, ctypes.util, os, sys
+library = ctypes.util.find_library("X11")
+if library is None:
+    sys.exit(3)
+xlib = ctypes.CDLL(library)
+xlib.XOpenDisplay.restype = ctypes.c_void_p
+xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+xlib.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p] + [ctypes.POINTER(ctypes.c_int)] * 3
+xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+display = xlib.XOpenDisplay(os.environ["DISPLAY"].encode())
+if not display:
+    sys.exit(4)
+codes = [ctypes.c_int() for _ in range(3)]
+has_glx = xlib.XQueryExtension(display, b"GLX", *(ctypes.byref(c) for c in codes))
+xlib.XCloseDisplay(display)
+sys.exit(0 if has_glx else 5)
+"""
+"""Asks the X server named by DISPLAY, through Xlib, whether PyBullet's window can open there. It runs
+in a child process: Xlib used in this process before PyBullet's window thread made that thread's own
+connection fail in about one start in three (measured under Xvfb)."""
+X_PROBE_TIMEOUT_S = 10.0
+
+
 def check_display() -> None:
     """Raise :class:`DisplayUnavailableError` unless PyBullet's GUI can open a window here.
 
     On Linux PyBullet's GUI ends the whole process (exit 1, no exception) when it cannot reach an X
-    server or the server has no OpenGL (GLX); so ask the X server first, through Xlib. Other platforms
-    open native windows and are not checked.
+    server or the server has no OpenGL (GLX); so ask the X server first (:data:`_X_PROBE`). Other
+    platforms open native windows and are not checked.
     """
     if not sys.platform.startswith("linux"):
         return
@@ -71,24 +94,19 @@ def check_display() -> None:
     name = os.environ.get("DISPLAY")
     if not name:
         raise DisplayUnavailableError(f"render_mode='human' needs a display, but DISPLAY is not set; {hint}")
-    library = ctypes.util.find_library("X11")
-    if library is None:
-        raise DisplayUnavailableError(f"render_mode='human' needs the X11 library (libX11), which is not installed; {hint}")
-    xlib = ctypes.CDLL(library)
-    xlib.XOpenDisplay.restype = ctypes.c_void_p
-    xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
-    xlib.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p] + [ctypes.POINTER(ctypes.c_int)] * 3
-    xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
-    display = xlib.XOpenDisplay(name.encode())
-    if not display:
-        raise DisplayUnavailableError(f"render_mode='human' cannot open the X display DISPLAY={name!r}; {hint}")
     try:
-        codes = [ctypes.c_int() for _ in range(3)]
-        has_glx = xlib.XQueryExtension(display, b"GLX", *(ctypes.byref(c) for c in codes))
-    finally:
-        xlib.XCloseDisplay(display)
-    if not has_glx:
+        probe = subprocess.run([sys.executable, "-c", _X_PROBE], timeout=X_PROBE_TIMEOUT_S, capture_output=True)
+        code = probe.returncode
+    except subprocess.TimeoutExpired:
+        code = 4
+    if code == 3:
+        raise DisplayUnavailableError(f"render_mode='human' needs the X11 library (libX11), which is not installed; {hint}")
+    if code == 4:
+        raise DisplayUnavailableError(f"render_mode='human' cannot open the X display DISPLAY={name!r}; {hint}")
+    if code == 5:
         raise DisplayUnavailableError(f"the X display {name!r} has no OpenGL (GLX extension), which PyBullet's GUI needs; {hint}")
+    if code != 0:
+        raise DisplayUnavailableError(f"checking the X display {name!r} failed (exit {code}); {hint}")
 
 
 class _Client(BulletClient):
