@@ -139,9 +139,13 @@ class ActionModels(Estimator):
         effect_tol: least spread (m) of a phi direction a class's PHMM models.
         max_states, state_fraction: states per class (see the module docstring).
         velocity: append marker displacements to the positions.
-        n_restarts: phi estimates started per class and movement in :meth:`recognize`.
+        n_restarts: phi estimates started per class and movement (from the mean training effect, then
+            from random training effects).
         n_candidates: classes :meth:`recognize` estimates phi for: those whose chains, over their
             training effects, explain the movement best (the rest are ruled out).
+            On the validation split, 1 restart and 8 candidates gave the same figures as 5 restarts
+            (92.5 % with the cuts given, phi error median 0.45 cm) in a quarter of the time, and as
+            every class with 5 restarts in an earlier session (92.1 %).
         unexplained_penalty: nats a class pays for a piece shorter than its chain (``None``: ruled out).
         continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
         stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
@@ -164,7 +168,7 @@ class ActionModels(Estimator):
         max_states: int = 40,
         state_fraction: float = 1.0,
         velocity: bool = True,
-        n_restarts: int = 5,
+        n_restarts: int = 1,
         n_candidates: int = 8,
         unexplained_penalty: float | None = 1000.0,
         continuity_weight: float = 1e6,
