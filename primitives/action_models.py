@@ -47,6 +47,7 @@ import json
 import logging
 import math
 import sys
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,7 +55,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
+from hoap_actions.errors import DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
 from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.connected_recognition import ChainedHMM, chain_classes, exit_probability
@@ -62,7 +63,7 @@ from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.effect_continuity import effect_gap_scores
 from hoap_actions.primitives.grammar import ActionGrammar
-from hoap_actions.primitives.parametric_hmm import ParametricHMM, recognize
+from hoap_actions.primitives.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM, recognize
 
 logger = logging.getLogger(__name__)
 
@@ -77,6 +78,7 @@ the manifest (format, hyper-parameters, classes with their kinds and effect redu
 discovery (which also cuts new object trajectories) and the grammar."""
 DISPLACEMENT_WINDOW_S = 0.1  # s, the marker displacement appended to the positions
 EFFECT_DIM = 6  # phi = initial xyz, final xyz (m)
+PHI_NAMES = ("initial x", "initial y", "initial z", "final x", "final y", "final z")
 
 
 def marker_features(H: np.ndarray, fps: float, velocity: bool = True) -> np.ndarray:
@@ -292,8 +294,24 @@ class ActionModels(Estimator):
         varied in is used; a phi far outside them warns (ExtrapolationWarning)."""
         model = self._class(class_id)
         phi = _check_phi(phi)
-        X = model.phmm.synthesize(model.reduced_phi(phi), n_frames)
+        self._warn_if_extrapolating(model, phi)
+        with warnings.catch_warnings():  # said above, in the full phi's terms
+            warnings.simplefilter("ignore", ExtrapolationWarning)
+            X = model.phmm.synthesize(model.reduced_phi(phi), n_frames)
         return X[:, : 3 * len(self.marker_names_)].reshape(len(X), -1, 3)
+
+    def _warn_if_extrapolating(self, model: ClassModel, phi: np.ndarray) -> None:
+        """Warn if a component of ``phi`` is beyond the class's training effects, widened by
+        :data:`~hoap_actions.primitives.parametric_hmm.EXTRAPOLATION_MARGIN` of their span plus
+        ``effect_tol`` (a direction the demonstrations did not vary in is not modelled at all)."""
+        trained = model.centre + model.phmm.train_phi_ @ model.basis.T  # (n_segments, 6)
+        low, high = trained.min(axis=0), trained.max(axis=0)
+        margin = EXTRAPOLATION_MARGIN * (high - low) + self.effect_tol
+        far = np.flatnonzero((phi < low - margin) | (phi > high + margin))
+        if far.size:
+            ranges = "; ".join(f"{PHI_NAMES[i]} {phi[i]:.3f} m, demonstrated {low[i]:.3f}..{high[i]:.3f} m" for i in far)
+            warnings.warn(f"phi is far outside what class {model.class_id}'s demonstrations show ({ranges}): the "
+                          "movement is an unchecked extrapolation", ExtrapolationWarning, stacklevel=3)
 
     def _class(self, class_id: int) -> ClassModel:
         check_is_fitted(self)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -170,9 +171,17 @@ def test_bad_inputs_name_what_is_accepted(small):
 def test_phi_far_outside_the_demonstrations_warns(small):
     demos, discovery, models, _ = small
     approach = next(c for c in discovery.classes_ if c.kind == "approach")
-    far = approach.segments[0].phi + np.array([10.0, 10.0, 0.0, 10.0, 10.0, 0.0])  # 14 m away
-    with pytest.warns(ExtrapolationWarning):
+    near = modelled(models, approach.primitive_id, approach.segments[0].phi)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a demonstrated effect: no warning
+        models.synthesize(approach.primitive_id, near)
+    far = near + np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0])  # the reach's end 1 m further away
+    with pytest.warns(ExtrapolationWarning, match=r"final x -?\d\.\d+ m, demonstrated -?\d\.\d+\.\.-?\d\.\d+ m") as caught:
         models.synthesize(approach.primitive_id, far)
+    assert len(caught) == 1  # said once, in the full phi's terms
+    above = near + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])  # 20 cm above where every reach ended
+    with pytest.warns(ExtrapolationWarning, match="final z"):
+        models.synthesize(approach.primitive_id, above)
 
 
 def test_learn_command_writes_the_models_directory_and_refuses_to_replace_it(small, tmp_path, capsys):
