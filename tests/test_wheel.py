@@ -59,8 +59,10 @@ def test_wheel_holds_only_the_hoap_actions_package(wheel):
     assert all(t == "hoap_actions" or t.endswith(".dist-info") for t in top_levels), top_levels
     repo_urdfs = {p.name for p in (REPO / "urdf").glob("*.urdf")}
     assert repo_urdfs and {f"hoap_actions/urdf/{u}" for u in repo_urdfs} <= set(names)
-    for sub in ("envs", "primitives", "controllers"):
+    for sub in ("envs", "primitives", "controllers", "models"):
         assert f"hoap_actions/{sub}/__init__.py" in names
+    shipped = {p.name for p in (REPO / "models" / "paper").iterdir()}
+    assert shipped and {f"hoap_actions/models/paper/{n}" for n in shipped} <= set(names)  # the default models
 
 
 def test_installed_wheel_loads_every_urdf_and_env(wheel, tmp_path):

@@ -1,0 +1,68 @@
+"""The action models shipped in the package: what ships is what the documented command made, and it works."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import hoap_actions
+from hoap_actions.cli import main
+from hoap_actions.default_models import (
+    PROVENANCE,
+    TRAINING_PRESET,
+    TRAINING_SEEDS,
+    build_default_models,
+    default_models_path,
+    load_default_models,
+    sha256,
+)
+from hoap_actions.primitives.action_models import ActionModels
+
+
+def test_shipped_files_are_the_ones_the_build_command_recorded():
+    path = default_models_path()
+    provenance = json.loads((path / PROVENANCE).read_text())
+    assert provenance["preset"] == TRAINING_PRESET and tuple(provenance["seeds"]) == TRAINING_SEEDS
+    assert provenance["hoap_actions_version"] == hoap_actions.__version__
+    assert set(provenance["recordings_sha256"]) == {f"{TRAINING_PRESET}-s{s}.h5" for s in TRAINING_SEEDS}
+    shipped = {p.name for p in path.iterdir()} - {PROVENANCE}
+    assert shipped == set(provenance["files_sha256"])
+    for name, digest in provenance["files_sha256"].items():
+        assert sha256(path / name) == digest, f"{name} differs from the file the build command wrote"
+
+
+def test_shipped_models_load_and_are_small():
+    models = load_default_models()
+    assert len(models.classes_) == json.loads((default_models_path() / PROVENANCE).read_text())["classes"]
+    assert sum(p.stat().st_size for p in default_models_path().iterdir()) < 8e6  # bytes: a few MB in the wheel
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    from hoap_actions.envs.recording import record
+
+    return record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
+
+
+def test_recognize_without_models_uses_the_shipped_ones(small, tmp_path, capsys):
+    out = tmp_path / "r.json"
+    assert main(["recognize", "--demos", str(small), "--json", str(out), "--no-oracle"]) == 0
+    report = json.loads(out.read_text())
+    assert report["models"] == "shipped default models" and report["episodes"] == 4
+    # the small preset's push, move and rotate are pieces the paper preset's models know
+    assert report["frame_accuracy"] > 0.5
+
+
+@pytest.mark.slow
+def test_the_build_command_remakes_the_shipped_models(tmp_path):
+    """Records the ten training recordings and learns again (about 10 minutes on 2 cores)."""
+    built = build_default_models(tmp_path / "models", tmp_path / "data")
+    shipped = json.loads((default_models_path() / PROVENANCE).read_text())
+    again = json.loads((built / PROVENANCE).read_text())
+    assert again["recordings_sha256"] == shipped["recordings_sha256"]  # the simulator is deterministic
+    a, b = ActionModels.load(built), load_default_models()
+    assert sorted(a.classes_) == sorted(b.classes_)
+    for cid in a.classes_:
+        np.testing.assert_allclose(a.classes_[cid].phmm.mean_bar_, b.classes_[cid].phmm.mean_bar_, rtol=1e-6, atol=1e-9)
