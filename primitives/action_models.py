@@ -37,7 +37,7 @@ held-out seed 3; figures in ``benchmarks/results/NOTES.md``):
   table and cut worse (frame accuracy 89.2 % with them, 94.5 % without), and ``stay_weight`` 2
   (95.2 %, edit score 0.909 against 0.888 at 1).
 
-Files: :meth:`ActionModels.save` writes a models directory (layout in :data:`MODELS_FILES`);
+Files: :meth:`ActionModels.save` writes a models directory (layout in :mod:`~hoap_actions.primitives.models_directory`);
 :meth:`ActionModels.load` validates every file and names the one that is wrong.
 """
 
@@ -61,21 +61,24 @@ from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.connected_recognition import ChainedHMM, chain_classes, exit_probability
 from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.models_directory import (
+    FORMAT_VERSION,
+    KIND,
+    MANIFEST,
+    check_manifest,
+    finite_array,
+    names,
+    positive,
+    read_manifest,
+)
 from hoap_actions.primitives.effect_continuity import effect_gap_scores
 from hoap_actions.primitives.grammar import ActionGrammar
 from hoap_actions.primitives.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM, recognize
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MODELS_FILES", "ActionModels", "ClassModel", "DecodedSegment", "SegmentRecognition", "marker_features"]
+__all__ = ["ActionModels", "ClassModel", "DecodedSegment", "SegmentRecognition", "marker_features"]
 
-FORMAT_VERSION = 1
-KIND = "ActionModels"
-MANIFEST = "manifest.json"
-MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
-"""Files of a models directory besides one ``class_<id>.npz`` (a :class:`ParametricHMM`) per class:
-the manifest (format, hyper-parameters, classes with their kinds and effect reductions), the fitted
-discovery (which also cuts new object trajectories) and the grammar."""
 DISPLACEMENT_WINDOW_S = 0.1  # s, the marker displacement appended to the positions
 EFFECT_DIM = 6  # phi = initial xyz, final xyz (m)
 PHI_NAMES = ("initial x", "initial y", "initial z", "final x", "final y", "final z")
@@ -424,7 +427,7 @@ class ActionModels(Estimator):
 
     # ----------------------------------------------------------------------------------- files
     def _write(self, path: Path, overwrite: bool) -> None:
-        """A models directory (:data:`MODELS_FILES` and ``class_<id>.npz``) that appears whole once
+        """A models directory (:mod:`~hoap_actions.primitives.models_directory`) that appears whole once
         complete; an existing one is replaced only with ``overwrite``."""
         with claimed_directory(path, overwrite, what="action models") as staging:
             self.write_files(staging)
@@ -457,7 +460,7 @@ class ActionModels(Estimator):
     def _read(cls, path: Path) -> tuple[object, object, dict]:
         if not path.is_dir():
             raise DataFileError(f"no models directory at {path}; make one with `hoap-actions learn`")
-        manifest = _read_manifest(path / MANIFEST)
+        manifest = read_manifest(path / MANIFEST)
         return manifest.get("kind"), manifest.get("format_version"), manifest
 
     @classmethod
@@ -465,17 +468,17 @@ class ActionModels(Estimator):
         """The models of the directory ``path``: every file validated, each error naming its file and entry."""
         directory = path
         manifest_path = directory / MANIFEST
-        _check_manifest(manifest_path, manifest)
+        check_manifest(manifest_path, manifest)
         try:
             models = cls(**manifest["params"])
             models._check_params()
         except (TypeError, InvalidInputError) as exc:
             raise DataFileError(f"{manifest_path}: entry params: {exc}; accepted: {cls._param_names()}") from None
-        models.fps_ = _positive(manifest_path, "fps", manifest["fps"])
-        models.marker_names_ = tuple(_strings(manifest_path, "marker_names", manifest["marker_names"]))
+        models.fps_ = positive(manifest_path, "fps", manifest["fps"])
+        models.marker_names_ = tuple(names(manifest_path, "marker_names", manifest["marker_names"]))
         width = (2 if models.velocity else 1) * 3 * len(models.marker_names_)
         prior = manifest["covars_prior"]
-        models.covars_prior_ = None if prior is None else _array(manifest_path, "covars_prior", prior, (width,))
+        models.covars_prior_ = None if prior is None else finite_array(manifest_path, "covars_prior", prior, (width,))
         models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
         models.grammar_ = ActionGrammar.load(directory / "grammar.json")
         classes = {}
@@ -483,7 +486,7 @@ class ActionModels(Estimator):
             where = f"{manifest_path}: entry classes[{entry.get('id')!r}]"
             if not isinstance(entry, dict) or not isinstance(entry.get("id"), int) or entry.get("file") != f"class_{entry.get('id')}.npz":
                 raise DataFileError(f"{where} must hold an int id and its file class_<id>.npz")
-            centre = _array(manifest_path, f"classes[{entry['id']}].effect_centre", entry["effect_centre"], (EFFECT_DIM,))
+            centre = finite_array(manifest_path, f"classes[{entry['id']}].effect_centre", entry["effect_centre"], (EFFECT_DIM,))
             basis = np.asarray(entry["effect_basis"], dtype=float)
             if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
                 raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")
@@ -535,45 +538,3 @@ def _pooled_variances(models: list[ParametricHMM], frames: list[int], reg_covar:
 
     total = float(sum(frames))
     return sum(n / total * variances(m) for m, n in zip(models, frames))
-
-
-def _read_manifest(path: Path) -> dict:
-    try:
-        document = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise DataFileError(f"{path} is missing: a models directory holds {', '.join(MODELS_FILES)} and class_<id>.npz") from None
-    except (OSError, ValueError) as exc:
-        raise DataFileError(f"{path} is not a readable JSON manifest: {exc}") from None
-    if not isinstance(document, dict):
-        raise DataFileError(f"{path} is not an {KIND} manifest (a JSON object with kind {KIND!r})")
-    return document
-
-
-def _check_manifest(path: Path, document: dict) -> None:
-    for key in ("params", "fps", "marker_names", "covars_prior", "classes"):
-        if key not in document:
-            raise DataFileError(f"{path}: entry {key} is missing")
-    if not isinstance(document["params"], dict) or not isinstance(document["classes"], list) or not document["classes"]:
-        raise DataFileError(f"{path}: params must be an object and classes a non-empty list")
-
-
-def _positive(path: Path, name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
-        raise DataFileError(f"{path}: entry {name} must be a positive number; got {value!r}")
-    return float(value)
-
-
-def _strings(path: Path, name: str, value: object) -> list[str]:
-    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
-        raise DataFileError(f"{path}: entry {name} must be a non-empty list of names; got {value!r}")
-    return value
-
-
-def _array(path: Path, name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise DataFileError(f"{path}: entry {name} is not numeric") from None
-    if array.shape != shape or not np.all(np.isfinite(array)):
-        raise DataFileError(f"{path}: entry {name} must be {shape} finite numbers; got shape {array.shape}")
-    return array

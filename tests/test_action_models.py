@@ -11,9 +11,10 @@ import pytest
 
 from hoap_actions.cli import main
 from hoap_actions.errors import DataExistsError, DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
-from hoap_actions.primitives.action_models import MANIFEST, ActionModels, marker_features
+from hoap_actions.primitives.action_models import ActionModels, marker_features
 from hoap_actions.primitives.datasets import load_demonstrations
 from hoap_actions.primitives.discovery import PrimitiveDiscovery
+from hoap_actions.primitives.models_directory import MANIFEST
 
 
 @pytest.fixture(scope="module")
