@@ -1,16 +1,48 @@
 """What every benchmark shares: where its figures go (a JSON file under ``benchmarks/results/``), the
-software they were measured with, the recordings it needs (under ``data/``, made on demand) and how
-a figure's spread over several recordings is reported."""
+options every script takes (``--output``, and ``--data`` / ``--threads`` where it needs them), the
+software and machine they were measured with, the recordings it needs (under ``data/``, made on
+demand) and how a figure's spread over several recordings is reported. The history of what was
+tried, and earlier figures, are in ``results/NOTES.md``."""
 
 from __future__ import annotations
 
+import argparse
+import datetime
 import json
 import os
+import platform
 import sys
+import warnings
 from pathlib import Path
 
 
 RESULTS = Path(__file__).resolve().parent / "results"
+DATA = Path(__file__).resolve().parents[1] / "data"
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def arguments(output: str, data: bool = False, threads: bool = False) -> argparse.ArgumentParser:
+    """A parent parser with the options benchmarks share: ``--output`` (default ``RESULTS/<output>``);
+    with ``data``, ``--data``, the folder recordings are found in or made in (default the checkout's
+    ``data/``); with ``threads``, ``--threads``, the BLAS threads (default 1, see :func:`use_blas_threads`)."""
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--output", type=Path, default=RESULTS / output, help="JSON file to write (default: %(default)s)")
+    if data:
+        parser.add_argument("--data", type=Path, default=DATA,
+                            help="folder of recordings, made there when missing (default: %(default)s)")
+    if threads:
+        parser.add_argument("--threads", type=int, default=1, help="BLAS threads (default: %(default)s)")
+    return parser
+
+
+def use_blas_threads(threads: int) -> None:
+    """Ask BLAS for ``threads`` threads; this works only before numpy is first imported (a warning says
+    so otherwise). On a shared 2-core machine multithreaded BLAS on small products is slower and
+    erratic, hence the default of 1."""
+    if "numpy" in sys.modules:
+        warnings.warn(f"numpy is already imported: BLAS keeps its threads, not {threads}", stacklevel=2)
+    for variable in BLAS_THREAD_VARIABLES:
+        os.environ[variable] = str(threads)
 
 
 def ensure_recording(preset: str, seed: int, data: Path) -> Path:
@@ -35,12 +67,15 @@ def spread(values: list[float]) -> dict:
     return {"mean": mean, "sd": sd, "ci95": [mean - half, mean + half], "n": len(x), "values": x.tolist()}
 
 
-def numeric_environment(blas_threads: int | None) -> dict:
-    """BLAS threads, CPUs, Python and numpy versions: what numeric timings and results depend on."""
+def numeric_environment(blas_threads: int | None, **versions: str) -> dict:
+    """What timings and results depend on: BLAS threads (None: the library's default), CPUs and the
+    1-minute load average when measured, the platform, Python and numpy versions (and ``versions`` of
+    other libraries the benchmark uses), and the UTC time of the run."""
     import numpy as np
 
-    return {"blas_threads": blas_threads, "cpu_count": os.cpu_count(), "python": sys.version.split()[0],
-            "numpy": np.__version__}
+    return {"blas_threads": blas_threads, "cpu_count": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
+            "platform": platform.platform(), "python": sys.version.split()[0], "numpy": np.__version__,
+            **versions, "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 
 
 def write_json(path: Path, document: dict) -> None:

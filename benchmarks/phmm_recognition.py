@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import RESULTS, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
 
 GOALS = {"frame_accuracy": 0.90, "edit_score": 0.90, "oracle_cut_accuracy": 0.97, "phi_error_median_m": 0.01}
 FIGURES = ("frame_accuracy", "segment_accuracy", "edit_score", "oracle_cut_accuracy", "phi_error_median_m",
@@ -31,14 +31,13 @@ FIGURES = ("frame_accuracy", "segment_accuracy", "edit_score", "oracle_cut_accur
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     parents=[arguments("phmm_recognition.json", data=True)])
     parser.add_argument("--train-seeds", type=int, nargs="+", default=list(range(10)))
     parser.add_argument("--test-seeds", type=int, nargs="+", default=[101, 102, 103])
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[1] / "data")
     parser.add_argument("--models", type=Path, help="use this models directory instead of learning one")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes for recognition")
     parser.add_argument("--no-oracle", dest="oracle", action="store_false", help="skip recognition with the cuts given")
-    parser.add_argument("--output", type=Path, default=RESULTS / "phmm_recognition.json")
     return parser.parse_args(argv)
 
 

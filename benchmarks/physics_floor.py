@@ -8,7 +8,7 @@ control; its simulated seconds per wall second bound any environment built on it
 
     python benchmarks/physics_floor.py [--runs 5] [--steps 480]
 
-Writes ``benchmarks/results/physics_floor.json``.
+Writes ``results/physics_floor.json``; earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
@@ -20,9 +20,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results"
 ITERATIONS = (None, 10, 1)  # None: PyBullet's default (50)
 
 
@@ -69,10 +68,9 @@ def robot_alone(iterations: int | None, steps: int, runs: int) -> float:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], parents=[arguments("physics_floor.json")])
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--steps", type=int, default=480)
-    parser.add_argument("--output", type=Path, default=RESULTS / "physics_floor.json")
     args = parser.parse_args(argv)
     from hoap_actions.envs.sim import TIMESTEP
 
@@ -86,7 +84,7 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"{world_name:20s} {row['solver_iterations']:3d} iterations: {cost:7.1f} us per step "
                   f"-> at most {row['sim_s_per_wall_s_at_most']:5.1f} simulated s per wall s")
     result = {"timestep_s": TIMESTEP, "steps_per_run": args.steps, "runs": args.runs, "rows": rows,
-              "environment": numeric_environment(1)}
+              "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, result)
     print(f"wrote {args.output}")
     return result
