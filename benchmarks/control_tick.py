@@ -8,16 +8,16 @@ Measures, on the standing robot in PegInsert-v0 (control_mode="ee_delta"):
 - the scripted expert's episodes: wall time, simulated time and real-time factor (simulated
   seconds per wall second), success and failure reasons.
 
-Run: python benchmarks/control_tick.py [--episodes 10] [--seed 1000]
-Prints a table and writes benchmarks/results/control_tick.json.
+    python benchmarks/control_tick.py [--episodes 10] [--seed 1000]
+
+Prints a table and writes ``results/control_tick.json``; earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
-import json
-import platform
+import sys
 import time
 from pathlib import Path
 
@@ -30,7 +30,8 @@ from hoap_actions.envs.core import PHYSICS_STEPS_PER_ACTION
 from hoap_actions.envs.sim import TIMESTEP
 from hoap_actions.episodes import run_episode
 
-RESULTS = Path(__file__).resolve().parent / "results" / "control_tick.json"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, write_json  # noqa: E402
 
 
 def _moving_target(start: np.ndarray, k: int) -> np.ndarray:
@@ -94,11 +95,11 @@ def bench_expert(episodes: int, seed: int) -> dict:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("control_tick.json")])
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--seed", type=int, default=1000)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     tick = bench_tick()
     expert = bench_expert(args.episodes, args.seed)
     print(
@@ -115,12 +116,10 @@ def main() -> None:
         f"real-time factor {expert['real_time_factor']:.2f}"
     )
     print(f"  reasons: {expert['reasons']}")
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(
-        json.dumps({"machine": platform.platform(), "processor": platform.processor(), "tick": tick, "expert": expert}, indent=2)
-        + "\n"
-    )
-    print(f"results: {RESULTS}")
+    document = {"tick": tick, "expert": expert, "environment": numeric_environment(blas_threads=None)}
+    write_json(args.output, document)
+    print(f"wrote {args.output}")
+    return document
 
 
 if __name__ == "__main__":

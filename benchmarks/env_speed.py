@@ -1,28 +1,29 @@
 """Environment speed: env steps per second and simulated seconds per wall second, per id.
 
 Each figure is the median of several runs, with and without rendering an ``rgb_array`` frame every
-step, for random actions (the robot often falls: many contacts) and for zero actions (it stands). Printed and written to ``benchmarks/results/env_speed.json``.
+step, for random actions (the robot often falls: many contacts) and for zero actions (it stands).
 
     python benchmarks/env_speed.py [--runs 5] [--steps 300]
+
+Printed and written to ``results/env_speed.json``; earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import platform
 import statistics
+import sys
 import time
 from pathlib import Path
 
 import gymnasium
-import numpy as np
 
 import hoap_actions
 from hoap_actions.envs.core import PHYSICS_STEPS_PER_ACTION
 from hoap_actions.envs.sim import TIMESTEP
 
-RESULTS = Path(__file__).parent / "results" / "env_speed.json"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, write_json  # noqa: E402
 
 
 def time_run(env_id: str, render: bool, steps: int, seed: int, actions_kind: str) -> float:
@@ -43,11 +44,11 @@ def time_run(env_id: str, render: bool, steps: int, seed: int, actions_kind: str
     return elapsed
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("env_speed.json")])
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--steps", type=int, default=300)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     sim_seconds_per_step = PHYSICS_STEPS_PER_ACTION * TIMESTEP
     rows = []
     for env_id in hoap_actions.ENV_IDS:
@@ -71,11 +72,10 @@ def main() -> None:
                 f"{row['median_sim_s_per_wall_s']:6.2f} sim s / wall s  "
                 f"({row['median_physics_step_ms']:.3f} ms per physics step incl. overhead)"
             )
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(
-        json.dumps({"machine": platform.platform(), "numpy": np.__version__, "results": rows}, indent=2) + "\n"
-    )
-    print(f"wrote {RESULTS}")
+    document = {"results": rows, "environment": numeric_environment(blas_threads=None)}
+    write_json(args.output, document)
+    print(f"wrote {args.output}")
+    return document
 
 
 if __name__ == "__main__":

@@ -8,31 +8,29 @@ interleaved so machine load hits both alike; medians are reported.
     python benchmarks/phmm_speed.py [--repeats 7] [--threads 1]
 
 BLAS threads default to 1 for both libraries (set before numpy loads): on a shared 2-core machine
-multithreaded BLAS on these small products is slow and erratic.  Writes
-``benchmarks/results/phmm_speed.json``.
+multithreaded BLAS on these small products is slow and erratic.  Writes ``results/phmm_speed.json``;
+earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
-RESULTS = Path(__file__).resolve().parent / "results" / "phmm_speed.json"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, use_blas_threads, write_json  # noqa: E402
+
 N_SEQUENCES, N_FRAMES, N_DIMS, N_STATES, N_PARAMS = 100, 200, 18, 40, 2
 GOAL_SPEEDUP = 5.0
 EXTRA_ITERATIONS = 4
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     parents=[arguments("phmm_speed.json", threads=True)])
     parser.add_argument("--repeats", type=int, default=7, help="timed repetitions of each (median reported)")
-    parser.add_argument("--threads", type=int, default=1, help="BLAS threads for both libraries")
-    parser.add_argument("--output", type=Path, default=RESULTS, help="JSON file to write")
     return parser.parse_args(argv)
 
 
@@ -51,8 +49,7 @@ def make_data(rng):
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(args.threads)
+    use_blas_threads(args.threads)
 
     import numpy as np
     import hmmlearn
@@ -113,10 +110,7 @@ def main(argv: list[str] | None = None) -> dict:
                   "ours_fit_1_iteration: ParametricHMM.fit(n_iter=1) including validation, padding, "
                   "equal-parts initialisation and one E+M step with W. ours_em_iteration: marginal cost "
                   f"of one E+M step, (fit(n_iter={1 + EXTRA_ITERATIONS}) - fit(n_iter=1)) / {EXTRA_ITERATIONS}."),
-        "environment": {"blas_threads": args.threads, "cpu_count": os.cpu_count(),
-                        "load_average_1min": os.getloadavg()[0], "python": sys.version.split()[0],
-                        "numpy": np.__version__, "hmmlearn": hmmlearn.__version__,
-                        "machine": platform.machine()},
+        "environment": numeric_environment(args.threads, hmmlearn=hmmlearn.__version__),
         "repeats": args.repeats,
     }
     result["goal_met"] = result["speedup_fit_1_iteration"] >= GOAL_SPEEDUP
@@ -129,8 +123,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"  ParametricHMM one E+M iteration, with W    : {med['ours_em_iteration_s'] * 1e3:8.1f} ms  "
           f"({result['speedup_em_iteration']:.1f}x)")
     print(f"  goal >= {GOAL_SPEEDUP:.0f}x: {'met' if result['goal_met'] else 'NOT met'}")
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    write_json(args.output, result)
     print(f"wrote {args.output}")
     return result
 

@@ -1,29 +1,28 @@
 """Recording speed: recordings (episodes) per second and simulated seconds per wall second.
 
 Records a preset (``small`` by default) several times to a temporary directory, writing the HDF5 file
-included, and reports the median of the runs. Printed and written to
-``benchmarks/results/record_speed.json``.
+included, and reports the median of the runs.
 
     python benchmarks/record_speed.py [--preset small] [--runs 5]
+
+Printed and written to ``results/record_speed.json``; earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import platform
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
-
-import numpy as np
 
 from hoap_actions.envs.demonstrator import FPS
 from hoap_actions.envs.recording import record
 from hoap_actions.primitives.datasets import load_demonstrations
 
-RESULTS = Path(__file__).parent / "results" / "record_speed.json"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, write_json  # noqa: E402
 
 
 def time_run(preset: str, seed: int, directory: Path) -> tuple[float, int, int, int]:
@@ -36,11 +35,11 @@ def time_run(preset: str, seed: int, directory: Path) -> tuple[float, int, int, 
     return elapsed, len(demos), int(demos.lengths().sum()), out.stat().st_size
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("record_speed.json")])
     parser.add_argument("--preset", default="small")
     parser.add_argument("--runs", type=int, default=5)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as directory:
         runs = [time_run(args.preset, seed, Path(directory)) for seed in range(args.runs)]
     walls = [r[0] for r in runs]
@@ -63,11 +62,10 @@ def main() -> None:
         f"{row['median_sim_s_per_wall_s']:.1f} simulated s per wall s "
         f"(median of {args.runs} runs: {median:.2f} s for {episodes:.0f} episodes, {frames:.0f} frames)"
     )
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(
-        json.dumps({"machine": platform.platform(), "numpy": np.__version__, "results": [row]}, indent=2) + "\n"
-    )
-    print(f"wrote {RESULTS}")
+    document = {"results": [row], "environment": numeric_environment(blas_threads=None)}
+    write_json(args.output, document)
+    print(f"wrote {args.output}")
+    return document
 
 
 if __name__ == "__main__":
