@@ -1,20 +1,19 @@
-"""Where the discovery benchmarks keep their recordings, and re-recording them when the demonstrator changed.
+"""The discovery benchmarks' recordings: ``paper`` recordings in the ``--data`` folder (the checkout's
+``data/``), made there on demand, and a digest of the demonstrator's sources stored beside the figures.
 
-Datasets live outside the repository, in ``$HOAP_ACTIONS_DATA/discovery/`` (default ``/work/data``).
-A recording older than any of the demonstrator's sources is recorded again, so the figures always
-describe the current demonstrator.
+A recording older than any of the demonstrator's sources may no longer describe the current
+demonstrator: it is named in a warning, and recorded again only when asked (``rerecord_stale``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import logging
-import os
 from pathlib import Path
 
-logger = logging.getLogger(__name__)
+from _results import ensure_recording
 
-DATA_DIR = Path(os.environ.get("HOAP_ACTIONS_DATA", "/work/data")) / "discovery"
+logger = logging.getLogger(__name__)
 
 
 def demonstrator_sources() -> list[Path]:
@@ -33,16 +32,17 @@ def sources_digest() -> str:
     return digest.hexdigest()[:16]
 
 
-def paper_dataset(seed: int = 0, path: Path | None = None, rerecord_if_stale: bool = True) -> Path:
-    """The ``paper`` preset recorded with ``seed``: loaded from ``path`` (default in :data:`DATA_DIR`), recorded if
-    missing or older than the demonstrator's sources."""
+def paper_recording(seed: int, data: Path, rerecord_stale: bool = False) -> Path:
+    """``data/paper-s<seed>.h5``, recorded if missing (and, with ``rerecord_stale``, if older than the
+    demonstrator's sources)."""
+    path = ensure_recording("paper", seed, data)
+    if path.stat().st_mtime >= max(p.stat().st_mtime for p in demonstrator_sources()):
+        return path
+    if not rerecord_stale:
+        logger.warning("%s is older than the demonstrator's sources; its figures may not describe the current "
+                       "demonstrator (--rerecord-stale records it again)", path)
+        return path
     from hoap_actions.envs.recording import record
 
-    path = Path(path) if path is not None else DATA_DIR / f"paper-seed{seed}.h5"
-    newest_source = max(p.stat().st_mtime for p in demonstrator_sources())
-    if path.exists() and (not rerecord_if_stale or path.stat().st_mtime >= newest_source):
-        return path
-    logger.warning("recording the paper preset (seed %d) to %s (%s)", seed, path,
-                   "missing" if not path.exists() else "older than the demonstrator")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return record("paper", path, seed=seed, overwrite=True, progress=True)
+    logger.warning("recording the paper preset (seed %d) again to %s (older than the demonstrator)", seed, path)
+    return record("paper", path, seed=seed, overwrite=True)

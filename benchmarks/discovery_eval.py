@@ -9,36 +9,35 @@ speeds and paths) checking that the tuned parameters are not specific to one.
 
     python benchmarks/discovery_eval.py [--seeds 0 1] [--demos PATH] [--spacing S] [--threshold T]
 
-Recordings are made (about 2 minutes each) when missing or older than the demonstrator.
-Writes ``benchmarks/results/discovery_eval.json``.
+Recordings are looked for in ``--data`` (``data/`` under the checkout) as ``paper-s<seed>.h5`` and
+recorded there when missing (about 2 minutes each). Writes ``results/discovery_eval.json``; earlier
+figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
 import logging
-import platform
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, write_json  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results" / "discovery_eval.json"
 HEADLINE = ("labels_version", "n_action_groups", "n_true_actions", "n_true_phases", "phases_missed", "frame_accuracy",
             "edit_score", "boundary_f1", "fit_seconds", "params")
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     parents=[arguments("discovery_eval.json", data=True)])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="paper-preset recordings to evaluate")
     parser.add_argument("--demos", type=Path, help="evaluate this dataset instead of the seeds' recordings")
     parser.add_argument("--spacing", type=float, help="override the tuned spacing (m)")
     parser.add_argument("--threshold", type=float, help="override the tuned threshold (nats)")
-    parser.add_argument("--no-rerecord", action="store_true", help="use existing recordings even if stale")
-    parser.add_argument("--output", type=Path, default=RESULTS, help="JSON file to write")
+    parser.add_argument("--rerecord-stale", action="store_true",
+                        help="record again the recordings older than the demonstrator's sources")
     return parser.parse_args(argv)
 
 
@@ -103,23 +102,20 @@ def print_result(r: dict) -> None:
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    from _discovery_data import paper_dataset, sources_digest
+    from _discovery_data import paper_recording, sources_digest
 
-    rerecord = not args.no_rerecord
-    paths = [args.demos] if args.demos else [paper_dataset(s, rerecord_if_stale=rerecord) for s in args.seeds]
+    paths = [args.demos] if args.demos else [paper_recording(s, args.data, args.rerecord_stale) for s in args.seeds]
     results = [evaluate(path, args.spacing, args.threshold) for path in paths]
     for r in results:
         print_result(r)
     document = {
         "benchmark": "discovery_eval",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "demonstrator_sources_sha256_16": sources_digest(),
         "headline": {k: results[0][k] for k in HEADLINE},
         "results": results,
+        "environment": numeric_environment(blas_threads=None),
     }
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(document, indent=1) + "\n")
+    write_json(args.output, document)
     print(f"\nwrote {args.output}")
     return document
 

@@ -12,26 +12,25 @@ same joint HMM.
     python benchmarks/discovery_speed.py [--scales 1 4 16] [--repeats 3] [--threads 1]
 
 BLAS threads default to 1 (set before numpy loads): on a shared 2-core machine multithreaded BLAS
-on these small products is slower and erratic. Writes ``benchmarks/results/discovery_speed.json``.
+on these small products is slower and erratic. The recording is ``paper-s<seed>.h5`` in ``--data``
+(``data/`` under the checkout), recorded there when missing. Writes ``results/discovery_speed.json``;
+earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
-import datetime
-import json
 import logging
 import os
-import platform
 import pstats
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, use_blas_threads, write_json  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results" / "discovery_speed.json"
 GOAL_SECONDS = 30.0  # the paper preset on 2 cores
 POSITION_NOISE = 2e-4  # m
 STAGES = {  # report name: (module file, function names whose cumulative time it is)
@@ -45,13 +44,13 @@ STAGES = {  # report name: (module file, function names whose cumulative time it
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     parents=[arguments("discovery_speed.json", data=True, threads=True)])
     parser.add_argument("--scales", type=int, nargs="+", default=[1, 4, 16], help="multiples of the paper preset")
     parser.add_argument("--repeats", type=int, default=3, help="timed fits per scale (best reported)")
-    parser.add_argument("--threads", type=int, default=1, help="BLAS threads")
     parser.add_argument("--seed", type=int, default=0, help="paper-preset recording")
-    parser.add_argument("--no-rerecord", action="store_true", help="use an existing recording even if stale")
-    parser.add_argument("--output", type=Path, default=RESULTS, help="JSON file to write")
+    parser.add_argument("--rerecord-stale", action="store_true",
+                        help="record again the recording if older than the demonstrator's sources")
     return parser.parse_args(argv)
 
 
@@ -137,14 +136,13 @@ def viterbi_comparison(model, objects: list) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(args.threads)
+    use_blas_threads(args.threads)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    from _discovery_data import paper_dataset, sources_digest
+    from _discovery_data import paper_recording, sources_digest
 
     from hoap_actions.primitives.datasets import load_demonstrations
 
-    path = paper_dataset(args.seed, rerecord_if_stale=not args.no_rerecord)
+    path = paper_recording(args.seed, args.data, args.rerecord_stale)
     demos = load_demonstrations(path)
     objects, hands = [e.O for e in demos], [e.H.reshape(e.T, -1) for e in demos]
     print(f"{path}: {len(demos)} demonstrations; BLAS threads {args.threads}; {os.cpu_count()} CPUs, "
@@ -171,9 +169,6 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"goal: the paper preset in < {GOAL_SECONDS:.0f} s on 2 cores: {'met' if goal_met else 'NOT met'}")
     document = {
         "benchmark": "discovery_speed",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "machine": {"python": platform.python_version(), "platform": platform.platform(), "cpus": os.cpu_count(),
-                    "load_average_1min": os.getloadavg()[0], "blas_threads": args.threads},
         "demonstrator_sources_sha256_16": sources_digest(),
         "dataset": str(path),
         "replica_noise": {"position_m": POSITION_NOISE, "rotation_arc_m": POSITION_NOISE},
@@ -181,9 +176,9 @@ def main(argv: list[str] | None = None) -> dict:
         "goal_met": goal_met,
         "scales": rows,
         "viterbi_1x": comparison,
+        "environment": numeric_environment(args.threads),
     }
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(document, indent=1) + "\n")
+    write_json(args.output, document)
     print(f"wrote {args.output}")
     return document
 

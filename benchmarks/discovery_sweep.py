@@ -3,7 +3,6 @@
 A grid of spacing (m of arc length per Gaussian) x threshold (nats of symmetrised KL for merging)
 on the ``paper`` preset; for each cell: action groups found (against the true actions), frame
 accuracy (many-to-one and one-to-one mapping, see ``discovery_evaluation``), edit score, boundary F1.
-Heat maps in ``benchmarks/results/discovery_sweep.png``; every number in ``discovery_sweep.json``.
 A cell is marked when it recovers the paper's Fig. 7: as many groups as true actions, every true
 phase recovered and every manipulation group mapped to a manipulation and pure (> 99 % of its frames
 labelled with a manipulation from one phase). Frames a group takes from approach or remove at its
@@ -12,13 +11,15 @@ which the plan-based labels give to remove) are boundary errors, counted by fram
 boundary F1, not mixed actions.
 
     python benchmarks/discovery_sweep.py [--seeds 0 1] [--spacings ...] [--thresholds ...]
+
+Recordings are looked for in ``--data`` (``data/`` under the checkout) as ``paper-s<seed>.h5`` and
+recorded there when missing. Writes every number to ``results/discovery_sweep.json`` and the heat
+maps beside it (``discovery_sweep.png``); earlier figures are in ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
 import logging
 import sys
 from pathlib import Path
@@ -26,19 +27,20 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, numeric_environment, write_json  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results"
 SPACINGS = (0.02, 0.025, 0.03, 0.04)
 THRESHOLDS = (1.0, 2.0, 3.0, 5.0)
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     parents=[arguments("discovery_sweep.json", data=True)])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="paper-preset recordings")
     parser.add_argument("--spacings", type=float, nargs="+", default=list(SPACINGS))
     parser.add_argument("--thresholds", type=float, nargs="+", default=list(THRESHOLDS))
-    parser.add_argument("--no-rerecord", action="store_true", help="use existing recordings even if stale")
-    parser.add_argument("--output-dir", type=Path, default=RESULTS)
+    parser.add_argument("--rerecord-stale", action="store_true",
+                        help="record again the recordings older than the demonstrator's sources")
     return parser.parse_args(argv)
 
 
@@ -141,25 +143,26 @@ def plot(per_seed: dict[int, list[dict]], spacings: list[float], thresholds: lis
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    from _discovery_data import paper_dataset, sources_digest
+    from _discovery_data import paper_recording, sources_digest
 
     per_seed = {}
     for seed in args.seeds:
-        path = paper_dataset(seed, rerecord_if_stale=not args.no_rerecord)
+        path = paper_recording(seed, args.data, args.rerecord_stale)
         print(f"seed {seed}: {path}")
         per_seed[seed] = sweep(path, args.spacings, args.thresholds)
-    args.output_dir.mkdir(parents=True, exist_ok=True)
-    plot(per_seed, args.spacings, args.thresholds, args.output_dir / "discovery_sweep.png")
+    png = args.output.with_suffix(".png")
+    png.parent.mkdir(parents=True, exist_ok=True)
+    plot(per_seed, args.spacings, args.thresholds, png)
     document = {
         "benchmark": "discovery_sweep",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "demonstrator_sources_sha256_16": sources_digest(),
         "spacings": args.spacings,
         "thresholds": args.thresholds,
         "cells": {str(seed): cells for seed, cells in per_seed.items()},
+        "environment": numeric_environment(blas_threads=None),
     }
-    (args.output_dir / "discovery_sweep.json").write_text(json.dumps(document, indent=1) + "\n")
-    print(f"wrote {args.output_dir / 'discovery_sweep.png'} and discovery_sweep.json")
+    write_json(args.output, document)
+    print(f"wrote {args.output} and {png}")
     return document
 
 
