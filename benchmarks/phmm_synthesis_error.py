@@ -19,43 +19,32 @@ Protocol (section "Precision of Synthesized Actions from PHMMs"):
   the demonstrator's own error at a location is ``sqrt(mean_k e(rep_k, average)^2)``.  Each
   repetition is part of its average, so this human figure is, if anything, low.
 
-``--diagnose`` adds what limits the synthesis: a sweep of states / covariance type / reg_covar;
-the best a linear, quadratic or biquadratic PHMM can do (trained on the 5x7 test movements
-themselves); per-location plain HMMs (how much 40 interpolated state means lose); effect features
-(u, v, uv) and quadratic, the paper's "nonlinear model" option as a linear PHMM on features of phi
-(on the 3x3 grid also the biquadratic, whose 9 coefficients per state interpolate the 9 training
-locations exactly: the tensor-product quadratic interpolant, the most a 3x3 grid can pin down); and
-the elbow's peak height, which shows where the demonstrator changes arm strategy across the table.
-Every model's error is also split by marker
-(:func:`~hoap_actions.primitives.trajectory_metrics.warped_point_errors`).
+``--diagnose`` adds what limits the synthesis: a sweep of states / covariance type / reg_covar; the
+best a linear, quadratic or biquadratic PHMM can do (trained on the 5x7 test movements themselves);
+a plain HMM per test location (what 40 interpolated state means lose); effect features, the paper's
+"nonlinear model" option as a linear PHMM on features of phi ((u, v, uv) on the 2x2 grid, quadratic
+and biquadratic on the 3x3); and the elbow's peak height over the test grid. Every model's error is
+also split by marker (:func:`~hoap_actions.primitives.trajectory_metrics.warped_point_errors`).
 
-What it found (``results/phmm_synthesis_error.json``): the goal (mean <= 1.0 cm, no location worse
-than the demonstrator) is out of reach of the linear PHMM on this demonstrator whatever it is trained
-on.  Fitted to the 140 test movements themselves it scores a mean of 1.50 cm and is worse than the
-demonstrator at all 35 locations, while a plain HMM per location reaches 0.25 cm: the limit is that
-the arm's posture is not affine in the target (the elbow's peak height runs 15 -> 6 -> 13 cm across
-one row), not the 40 interpolated state means.  The shoulder and elbow carry most of the error.  Even
-the biquadratic PHMM fitted in-sample (9 coefficients per state) is worse than the demonstrator at 31
-of the 35 locations (mean 0.83 cm).
+    python benchmarks/phmm_synthesis_error.py [--diagnose] [--data DIR | --demos FILE]
 
-    python benchmarks/phmm_synthesis_error.py --data /work/data/approach-grid.h5 [--record] [--diagnose]
-
-Writes ``benchmarks/results/phmm_synthesis_error.json`` and ``.png`` (and ``_diagnosis.png``).
+The recording is ``approach-grid-s<seed>.h5`` in ``--data`` (``data/`` under the checkout), recorded
+there when missing (192 episodes). Writes ``results/phmm_synthesis_error.json`` and the maps beside
+it (``.png``, with ``--diagnose`` also ``_diagnosis.png`` and ``_diagnosis_elbow.png``). What the
+diagnosis found, and earlier figures: ``results/NOTES.md``.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import textwrap
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import numeric_environment, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, use_blas_threads, write_json  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results"
 N_STATES = 40
 TRAIN_GRIDS = ("2x2", "3x3")
 TEST_GRID = "5x7"
@@ -72,16 +61,14 @@ FEATURES = {
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--data", type=Path, default=Path("data/approach-grid.h5"),
-                        help="approach-grid dataset (HDF5); recorded there with --record if missing")
-    parser.add_argument("--record", action="store_true", help="record the dataset first if it does not exist")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     parents=[arguments("phmm_synthesis_error.json", data=True, threads=True)])
+    parser.add_argument("--seed", type=int, default=0, help="approach-grid recording (default: %(default)s)")
+    parser.add_argument("--demos", type=Path, help="use this approach-grid dataset (HDF5) instead of the seed's")
     parser.add_argument("--states", type=int, default=N_STATES)
     parser.add_argument("--covariance-type", default="full", choices=("full", "diag"))
     parser.add_argument("--reg-covar", type=float, default=1e-5, help="m^2 added to covariance diagonals")
     parser.add_argument("--diagnose", action="store_true", help="also run the investigation of what limits e")
-    parser.add_argument("--threads", type=int, default=1, help="BLAS threads")
-    parser.add_argument("--output", type=Path, default=RESULTS / "phmm_synthesis_error.json")
     return parser.parse_args(argv)
 
 
@@ -260,20 +247,16 @@ def diagnose(data: dict, test: dict, references, human, marker_names, args) -> t
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(args.threads)
+    use_blas_threads(args.threads)
 
     import numpy as np
 
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.trajectory_metrics import dtw_average, warped_rms_error
 
-    if args.record and not args.data.exists():
-        from hoap_actions.envs.recording import record
-
-        record("approach-grid", args.data)
+    path = args.demos or ensure_recording("approach-grid", args.seed, args.data)
     started = time.perf_counter()
-    demos = load_demonstrations(args.data)
+    demos = load_demonstrations(path)
     data = approach_segments(demos)
     test = data[TEST_GRID]
     references = np.empty(TEST_SHAPE, dtype=object)
@@ -282,7 +265,7 @@ def main(argv: list[str] | None = None) -> dict:
         references[row, col] = dtw_average([x for x, _ in reps])
         human[row, col] = np.sqrt(np.mean([warped_rms_error(x, references[row, col]) ** 2 for x, _ in reps]))
     result = {
-        "protocol": {"data": str(args.data), "n_states": args.states, "covariance_type": args.covariance_type,
+        "protocol": {"data": str(path), "n_states": args.states, "covariance_type": args.covariance_type,
                      "reg_covar_m2": args.reg_covar, "topology": "left-right", "phi": "object (x, y) at the end of "
                      "the approach, m", "error": "eq. (5): RMS over 6 markers after DTW, against the DTW-barycentre "
                      "average of the 4 repetitions; human: sqrt(mean_k e(rep_k, average)^2)",
