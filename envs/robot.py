@@ -1,7 +1,8 @@
 """The HOAP-3-style humanoid (``urdf/hoap3.urdf``) inside a :class:`~hoap_actions.envs.sim.Sim`.
 
 :class:`Robot` loads the model free-floating, stands it on the floor, and drives its 28 joints by
-position control with the HOAP-3 torque limits. Joint vectors are ``(28,)`` float arrays in
+position control with the HOAP-3 torque limits and joint speeds clamped at the URDF's velocity limits
+(5 rad/s). Joint vectors are ``(28,)`` float arrays in
 :attr:`Robot.joint_names` order (radians); quaternions are ``(x, y, z, w)``.
 """
 
@@ -84,6 +85,9 @@ class Robot:
         self.max_force = np.array([j.max_force for j in joints])
         for array in (self.lower, self.upper, self.max_velocity, self.max_force):
             array.flags.writeable = False
+        # A servo never turns faster than its top speed, whatever pushes the limb; the motors'
+        # maxVelocity alone left contacts and the other joints whipping a joint to 23 rad/s.
+        sim.set_joint_velocity_limits(name, self._indices, self.max_velocity)
         self._position = {n: i for i, n in enumerate(self.joint_names)}
         self._links = {f: sim.link_index(name, f) for f in FRAMES}
         self._feet = [sim.link_index(name, f"{p}_foot") for p in "rl"]
@@ -135,7 +139,7 @@ class Robot:
         self.set_targets(q)
 
     def set_targets(self, q: np.ndarray) -> None:
-        """Position targets for all 28 joints, driven with the HOAP-3 peak torques and a 5 rad/s motor cap.
+        """Position targets for all 28 joints, driven with the HOAP-3 peak torques at up to 5 rad/s.
 
         Raises :class:`InvalidInputError` for a wrong shape or NaN/inf. Targets beyond a joint's
         range are clipped to it, as a servo's own limits would (MuJoCo's ``ctrlrange`` behaves the

@@ -422,6 +422,28 @@ class Sim:
                 velocityGain=velocity_gain,
             )
 
+    def set_joint_velocity_limits(self, name: str, indices: list[int], limits: np.ndarray) -> None:
+        """Clamp the speed of joints ``indices`` of body ``name`` to ``limits`` (rad/s, > 0) in the solver.
+
+        ``maxVelocity`` in :meth:`set_joint_targets` caps only the motor's corrective velocity: contacts,
+        gravity and the motion of the other joints still whipped the 5 rad/s arm joints to 17-23 rad/s
+        under random joint_delta actions. PyBullet's ``maxJointVelocity`` (100 rad/s unless set) clamps
+        the joint's velocity in every step, as a real servo's top speed does; it is not part of a saved
+        state, so it holds across :meth:`restore_state`.
+        """
+        body = self.body_id(name)
+        movable = {joint.index for joint in self._joints[name]}
+        unknown = [j for j in indices if j not in movable]
+        if unknown:
+            raise InvalidInputError(f"joints {unknown} are not movable joints of body {name!r}; its joints: {sorted(movable)}")
+        limits = np.asarray(limits, dtype=float)
+        if limits.shape != (len(indices),) or not np.all(np.isfinite(limits)) or np.any(limits <= 0.0):
+            raise InvalidInputError(
+                f"limits must be {len(indices)} finite speeds > 0 (rad/s), one per joint; got {limits.tolist()}"
+            )
+        for joint, limit in zip(indices, limits):
+            self._p.changeDynamics(body, int(joint), maxJointVelocity=float(limit))
+
     def set_dynamics(self, name: str, link: int = -1, **kwargs: float) -> None:
         """Change contact/dynamics properties (``lateralFriction``, ``mass``, ...) of one link."""
         self._p.changeDynamics(self.body_id(name), link, **kwargs)
