@@ -13,8 +13,13 @@ on a target that moves under a millimetre per tick (see ``hand_control.py``). Ta
 - pelvis: soft tasks holding it level (1e2) and over its reset position in x and y (1e3); it may
   rise and sink, which is how the legs lower the shoulders;
 - posture: weak (1e-3) joint task towards a rest posture; the idle left arm held firmly (1);
+- leg damping: a cost (1 per rad^2) on each step of the leg joints. Without it the QP has almost no
+  curvature along the legs' squat direction once the knees near full extension, and its
+  Gauss-Newton step overshoots into a period-2 cycle: on a fixed target the knees alternated at the
+  +-5 rad/s limit every tick (0.02 rad at 120 Hz), in 864 of the 4800 ticks of a random ee_delta run;
 - joint position limits (the knees and waist narrower than the URDF's, see
-  :data:`IK_JOINT_LIMITS`) and velocity limits (5 rad/s).
+  :data:`IK_JOINT_LIMITS`) and velocity limits: 5 rad/s for the arms (the URDF's), but
+  :data:`BODY_SPEED` for the legs and the waist (see there; :meth:`WholeBodyIK.set_body_speed`).
 
 At reset the posture, CoM and tilt targets start at the measured state and move to their goals at
 bounded rates, so a reset never swings the body at full joint speed.
@@ -68,6 +73,17 @@ HELD = ("l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow", "l_w
 POSTURE_RATE = 0.5  # rad/s at which the posture target moves from the reset posture to the rest posture
 COM_RATE = 0.02  # m/s at which the CoM target moves to the polygon's centre and the margin grows
 TILT_RATE = 0.5  # rad/s at which the hand's tilt target goes from its reset tilt to level
+LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
+LEGS = tuple(f"{side}_{joint}" for side in "rl" for joint in LEG_JOINTS)
+BODY = (*LEGS, "waist_pitch")
+"""The joints that move the trunk: the legs and the waist."""
+LEG_DAMPING = 1.0  # per rad^2 of a leg joint's step: damps the QP's knee cycle (a hand error costs 1e4 per m^2)
+BODY_SPEED = 0.3  # rad/s, IK velocity limit of the legs and the waist
+"""The legs and the waist carry the trunk (3.3 of the robot's 8.8 kg); moved fast, the reaction to
+their accelerations rocks the feet on their 4 cm heels, and bang-bang ee_delta actions pumped that
+rocking until the robot fell backwards (3 falls in 8000 steps at the URDF's 5 rad/s; none in 6000
+steps at 0.3 rad/s with the leg damping, and the scripted expert still solves 19 of 20 layouts). The
+arms keep 5 rad/s: they are light, and they follow the hand while the body catches up."""
 
 
 class IKStatus(enum.IntEnum):
@@ -117,6 +133,9 @@ class WholeBodyIK:
         frozen: joints the solver must not move (fewer free variables, a faster QP).
         held, held_weight: joints kept near their posture by a stronger soft task (per rad^2).
         joint_limits: ranges (rad) narrower than the URDF's for the IK only, e.g. the knees.
+        leg_damping: soft weight on each leg joint's step (per rad^2), against the QP's knee cycle.
+        body_speed: velocity limit (rad/s) of the legs and the waist in the IK (:attr:`body_speed`;
+            :meth:`set_body_speed` changes it for a while).
     """
 
     def __init__(
@@ -137,6 +156,8 @@ class WholeBodyIK:
         held: Sequence[str] = HELD,
         held_weight: float = 1.0,
         joint_limits: Mapping[str, tuple[float, float]] = IK_JOINT_LIMITS,
+        leg_damping: float = LEG_DAMPING,
+        body_speed: float = BODY_SPEED,
     ) -> None:
         self.joint_names = tuple(joint_names)
         home = np.asarray(home_posture, dtype=float)
@@ -148,6 +169,7 @@ class WholeBodyIK:
         self.dt = float(dt)
         self.com_margin = float(com_margin)
         self.tolerance = float(tolerance)
+        self.body_speed = float(body_speed)
         self.robot = placo.RobotWrapper(str(urdf or urdf_path("hoap3.urdf")), placo.Flags.ignore_collisions)
         known = set(self.robot.joint_names())
         missing = [n for n in self.joint_names if n not in known]
@@ -159,10 +181,14 @@ class WholeBodyIK:
 
         solver = self.solver = placo.KinematicsSolver(self.robot)
         solver.dt = self.dt
+        self.set_body_speed(body_speed)
         solver.enable_joint_limits(True)
         solver.enable_velocity_limits(True)
         for name in frozen:
             solver.mask_dof(name)
+        leg_damping_task = solver.add_regularization_task(0.0)  # per-joint weights replace the 0 default
+        for name in LEGS:
+            leg_damping_task.set_joint_weight(name, float(leg_damping))
         self._feet = []
         for frame in FEET:
             task = solver.add_frame_task(frame, np.eye(4))
@@ -278,6 +304,14 @@ class WholeBodyIK:
         target = self._posture_target.tolist()
         self._posture.set_joints(dict(zip(self.joint_names, target)))
         self._held_task.set_joints({self.joint_names[i]: target[i] for i in self._held})
+
+    def set_body_speed(self, speed: float) -> None:
+        """Limit the legs and the waist to ``speed`` (rad/s, > 0) from the next solve on; the arms keep theirs."""
+        speed = float(speed)
+        if not np.isfinite(speed) or speed <= 0.0:
+            raise InvalidInputError(f"speed must be a finite joint speed > 0 (rad/s); got {speed}")
+        for name in BODY:
+            self.robot.set_velocity_limit(name, speed)
 
     @property
     def q(self) -> np.ndarray:

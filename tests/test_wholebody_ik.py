@@ -10,11 +10,12 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from hoap_actions.controllers.hand_control import HandController
-from hoap_actions.controllers.wholebody_ik import IKStatus, polygon_distance
+from hoap_actions.controllers.wholebody_ik import BODY, BODY_SPEED, IKStatus, WholeBodyIK, polygon_distance
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Sim
+from hoap_actions.errors import InvalidInputError
 
 TICKS = 480  # 2 s at 240 Hz: a move of up to 0.2 m at 0.15 m/s, then settling
 
@@ -105,6 +106,61 @@ def test_unreachable_target_is_reported_and_the_robot_stays_up(standing):
     assert not robot.has_fallen()
 
 
+def test_legs_and_waist_move_no_faster_than_body_speed(standing):
+    """A far target puts the whole body to work, at BODY_SPEED at most (the arms keep their 5 rad/s)."""
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    body = [hand.ik.joint_names.index(name) for name in BODY]
+    hand.set_target(robot.frame_pose("r_tcp")[0] + np.array([0.3, -0.2, -0.1]))
+    fastest, q = 0.0, hand.ik.q.copy()
+    for _ in range(TICKS // 2):
+        hand.tick()
+        sim.step(1)
+        fastest = max(fastest, float(np.abs(hand.ik.q[body] - q[body]).max()) / hand.dt)
+        q = hand.ik.q.copy()
+    assert 0.5 * BODY_SPEED < fastest <= BODY_SPEED + 1e-9, f"fastest body joint: {fastest:.3f} rad/s"
+    assert not robot.has_fallen()
+
+
+@pytest.mark.parametrize("speed", [0.0, -0.3, np.nan])
+def test_body_speed_must_be_a_positive_speed(standing, speed):
+    _, _, hand, _ = standing
+    with pytest.raises(InvalidInputError, match="speed must be a finite joint speed > 0"):
+        hand.ik.set_body_speed(speed)
+
+
+def _knee_reversals(ik: WholeBodyIK, target: np.ndarray, ticks: int = 120) -> int:
+    """Ticks on which the IK's right knee reverses at >= 80 % of BODY_SPEED while holding ``target``."""
+    knee = ik.joint_names.index("r_knee")
+    start = ik.hand_position()
+    steps = int(np.ceil(np.linalg.norm(target - start) / 5e-4))  # streamed like the controller's reference
+    for k in range(1, steps + 1):
+        ik.solve(start + (target - start) * k / steps)
+    angles = []
+    for _ in range(ticks):
+        ik.solve(target)
+        angles.append(ik.q[knee])
+    speed = np.diff(angles) / ik.dt
+    fast = np.abs(speed) >= 0.8 * BODY_SPEED
+    return int(np.sum(fast[1:] & fast[:-1] & (np.sign(speed[1:]) != np.sign(speed[:-1]))))
+
+
+def test_legs_settle_without_cycling_near_straight_knees(standing):
+    """Undamped, the QP's step overshoots along the straight legs' squat direction: on a fixed high
+    target the knees reverse at the speed limit every tick. The leg damping settles them."""
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    target = np.array([-0.02, -0.1, 0.11])
+    reversals = {}
+    for label, options in (("undamped", {"leg_damping": 0.0}), ("default", {})):
+        ik = WholeBodyIK(robot.joint_names, hand.ik.home_posture, **options)
+        ik.reset(robot.joint_positions(), *robot.base_pose())
+        reversals[label] = _knee_reversals(ik, target)
+    assert reversals["undamped"] > 20, f"the scenario no longer provokes the cycle: {reversals}"
+    assert reversals["default"] == 0, reversals
+
+
 def test_solver_failure_holds_the_last_posture(standing):
     sim, robot, hand, state = standing
     sim.restore_state(state)
@@ -143,6 +199,20 @@ def test_one_solve_takes_well_under_a_millisecond(standing):
 def test_ee_delta_env_passes_the_gymnasium_checker():
     env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
     check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_ee_delta_random_actions_seed_1001_do_not_fall():
+    """Issue row 7: these 800 actions (float32, as the action space's samples) on the layout of seed
+    1001 made the robot fall at step 529. The knees cycled at the IK's speed limit and the body's
+    motion rocked the feet until they tipped over the heels."""
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta").unwrapped
+    env.reset(seed=1001)
+    actions = np.random.default_rng(123).uniform(-1, 1, (2000, 4))[1200:].astype(np.float32)
+    for step, action in enumerate(actions, start=1):
+        _, _, terminated, _, info = env.step(action)
+        assert not info["fallen"], f"the robot fell at step {step}"
+        assert not terminated, f"the episode ended at step {step} without a fall: {info}"
     env.close()
 
 
