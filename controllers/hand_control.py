@@ -9,9 +9,23 @@ Two corrections use the measured hand (PyBullet's tcp). While the reference is a
 integral term adds the measured error to the IK target, so servo sag under gravity leaves no steady
 millimetre offset; it is frozen while the hand moves, because tracking lag and sway are not sag and
 winding them up shakes the robot. And the IK target never goes more than :data:`MAX_LEAD` below
-the measured hand, so a hand pressed down on an obstacle pushes with a bounded force instead of
-tipping the robot over. (Only downwards: capping it sideways too makes the command follow the
-robot's own rocking, which grows into a fall.)
+the measured hand, so a hand pressed down on an obstacle does not drag the whole body down after
+it. (Only downwards: capping it sideways too makes the command follow the robot's own rocking,
+which grows into a fall.) The push itself is the servos' full torque, up to ~30 N (measured); when
+it tips the robot, the balance guard below releases it.
+
+Balance comes before the hand. The IK keeps the model's centre of mass inside the support polygon,
+but it plans kinematically: the real feet can still rock on an edge when the body's motion or a
+push of the hand on the table or the board loads the ankles beyond what a 4 cm heel can hold, and
+bang-bang actions then pumped that rocking until the robot fell (2 falls in 40 000 random and
+bang-bang steps with the IK's slow body; none in another 40 000 with this guard). So while a sole is tilted more than
+:data:`BALANCE_TILT`, and for :data:`BALANCE_HOLD` after, the hand yields: the reference is set to
+where the servos actually hold the hand when the tilt is first seen (the measured hand carried into
+the IK's frame through the pelvis, so the robot's own sway does not move it) and held there, which
+ends at once any push on the table or the board (a palm pressed on the board lifted the robot's
+front with 33 N); the legs and the waist slow to :data:`BALANCE_BODY_SPEED` and the integral term
+is cleared. A rocking robot that holds still damps itself out (heel and toe impacts take about half
+the energy of each swing, measured).
 """
 
 from __future__ import annotations
@@ -21,9 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 from ruckig import RuckigError
+from scipy.spatial.transform import Rotation
 
 from hoap_actions.controllers.retiming import StreamingRetimer
-from hoap_actions.controllers.wholebody_ik import IKResult, IKStatus, WholeBodyIK
+from hoap_actions.controllers.wholebody_ik import PELVIS, IKResult, IKStatus, WholeBodyIK
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import TIMESTEP
 
@@ -51,6 +66,9 @@ REST = {
 }
 MAX_LEAD = 0.02  # m, furthest the IK target may go below the measured hand (free motion lags < 1 cm)
 UNREACHED_TICKS = 24  # ticks (0.1 s) of IK error above tolerance before the target counts as unreachable
+BALANCE_TILT = np.radians(0.5)  # rad, sole tilt beyond which a foot rocks (standing still, settled: < 0.1 deg)
+BALANCE_HOLD = 0.3  # s the hand keeps yielding after the soles are level again (a rocking swing takes ~0.3 s)
+BALANCE_BODY_SPEED = 0.02  # rad/s, IK speed limit of the legs and waist while the hand yields
 
 
 def rest_posture(robot: Robot) -> np.ndarray:
@@ -93,6 +111,8 @@ class HandController:
         self._velocity = np.zeros(3)
         self._correction = np.zeros(3)
         self._unreached = 0
+        self._yield_ticks = 0
+        self._held = np.zeros(3)
         self.last = IKResult(np.asarray(robot.home_posture, dtype=float), IKStatus.OK, 0.0)
 
     def reset(self) -> None:
@@ -106,6 +126,8 @@ class HandController:
         self._velocity = np.zeros(3)
         self._correction = np.zeros(3)
         self._unreached = 0
+        self._yield_ticks = 0
+        self.ik.set_body_speed(self.ik.body_speed)
         self.last = IKResult(self.ik.q, IKStatus.OK, 0.0)
 
     def set_target(self, position: ArrayLike) -> None:
@@ -117,19 +139,26 @@ class HandController:
         """True once the IK has missed its target (or failed) for :data:`UNREACHED_TICKS` ticks in a row."""
         return self._unreached >= UNREACHED_TICKS
 
+    @property
+    def yielding(self) -> bool:
+        """True while the hand yields to balance (a sole tilted, or was within :data:`BALANCE_HOLD`)."""
+        return self._yield_ticks > 0
+
     def tick(self) -> IKResult:
         """One period: smooth the target, correct it by the measured error, solve IK, command the joints."""
+        measured = self.robot.frame_pose("r_tcp")[0]
+        self._watch_balance(measured)
+        target = self._held if self.yielding else self.target
         try:
-            step = self.retimer.step(self.target)
+            step = self.retimer.step(target)
         except RuckigError:
             # ruckig 0.19 rejects ~0.4 % of inputs whose coordinates carry round-off (1e-17 m); the
             # same state rounded to a nanometre always passes (measured on 20 000 random moves)
             self.retimer.reset(np.round(self.reference, 9), np.round(self._velocity, 9))
-            step = self.retimer.step(np.round(self.target, 9))
+            step = self.retimer.step(np.round(target, 9))
         self.reference, self._velocity = step.position, step.velocity
-        measured = self.robot.frame_pose("r_tcp")[0]
         error = self.reference - measured
-        if self.integral_gain > 0.0 and np.linalg.norm(step.velocity) < AT_REST_SPEED:
+        if self.integral_gain > 0.0 and not self.yielding and np.linalg.norm(step.velocity) < AT_REST_SPEED:
             if np.linalg.norm(error) < INTEGRAL_MAX_ERROR:
                 self._correction += self.integral_gain * self.dt * error
                 np.clip(self._correction, -INTEGRAL_LIMIT, INTEGRAL_LIMIT, out=self._correction)
@@ -143,3 +172,26 @@ class HandController:
         self.robot.set_targets(q)
         self.last = result
         return result
+
+    def _watch_balance(self, measured: np.ndarray) -> None:
+        """Start, extend or end the hand's yielding to balance from the soles' tilt (see the module doc)."""
+        if self.robot.sole_tilt() > BALANCE_TILT:
+            if not self.yielding:
+                self._held = self._held_hand(measured)
+                self.retimer.reset(self._held)
+                self.reference, self._velocity = self._held.copy(), np.zeros(3)
+                self._correction = np.zeros(3)
+                self.ik.set_body_speed(BALANCE_BODY_SPEED)
+            self._yield_ticks = int(round(BALANCE_HOLD / self.dt))
+        elif self._yield_ticks > 0:
+            self._yield_ticks -= 1
+            if self._yield_ticks == 0:
+                self.ik.set_body_speed(self.ik.body_speed)
+
+    def _held_hand(self, measured: np.ndarray) -> np.ndarray:
+        """Where the servos actually hold the hand, in the IK's frame: the measured hand (3,) carried
+        from the measured pelvis to the IK model's, so a sway of the whole robot does not move it."""
+        position, quaternion = self.robot.base_pose()
+        offset = Rotation.from_quat(quaternion).inv().apply(measured - position)
+        T_pelvis = self.ik.robot.get_T_world_frame(PELVIS)
+        return T_pelvis[:3, :3] @ offset + T_pelvis[:3, 3]

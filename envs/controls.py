@@ -71,8 +71,9 @@ class EEDeltaController:
     touches a 15 mm peg and the squeeze grows with the closure beyond it (0.78 holds a peg firmly).
     Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the desired position
     under velocity / acceleration / jerk limits and the whole-body IK turns it into joint targets for
-    all 28 joints, feet planted, centre of mass inside the support polygon. ``hand`` exposes the IK
-    status (``hand.last``) and whether the target proved unreachable.
+    all 28 joints, feet planted, centre of mass inside the support polygon; while a foot rocks, the
+    hand yields to balance and holds where it is. ``hand`` exposes the IK status (``hand.last``),
+    whether the target proved unreachable and whether the hand is yielding (``hand.yielding``).
 
     Episodes start from :func:`~hoap_actions.controllers.hand_control.rest_posture` (left arm raised,
     right forearm tilted up) rather than the home posture, whose level right forearm lies across the

@@ -202,6 +202,12 @@ class Robot:
         xy = self._corners(*self.sim.link_poses(self.name, self._soles))[:, :2]
         return xy[ConvexHull(xy).vertices[::-1]]  # scipy lists 2-D hulls counter-clockwise
 
+    def sole_tilt(self) -> float:
+        """The larger of the two soles' tilts from level (rad): above ~0 a foot rocks on an edge."""
+        _, quats = self.sim.link_poses(self.name, self._soles)
+        up_z = Rotation.from_quat(quats).apply([0.0, 0.0, 1.0])[:, 2]
+        return float(np.arccos(np.clip(up_z.min(), -1.0, 1.0)))
+
     def has_fallen(self) -> bool:
         """True once the pelvis is lower than :data:`FALL_HEIGHT` above the floor or tilted past :data:`FALL_TILT`."""
         position, quat = self.base_pose()

@@ -105,6 +105,15 @@ def test_has_fallen_after_a_push_over(standing):
     assert robot.has_fallen()
 
 
+def test_sole_tilt_is_level_standing_and_follows_a_tipped_body(standing):
+    sim, robot = standing
+    sim.step(480)  # contact settling: the soles rock by up to 0.3 deg in the first second
+    assert robot.sole_tilt() < np.radians(0.2)
+    base, _ = robot.base_pose()
+    sim.set_base_pose(robot.name, base, Rotation.from_euler("y", 0.3).as_quat())
+    assert robot.sole_tilt() == pytest.approx(0.3, abs=1e-3)  # plus the little tilt it stood with
+
+
 @pytest.mark.parametrize("exact_cylinder", [True, False], ids=["implicit-cylinder", "convex-hull"])
 def test_hand_holds_a_peg_by_friction(standing, tmp_path, exact_cylinder):
     """Hand a peg into the open right hand, close it, raise the arm 21 cm: the peg follows the tcp."""

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from hoap_actions.controllers.hand_control import HandController
+from hoap_actions.controllers.hand_control import BALANCE_BODY_SPEED, BALANCE_HOLD, BALANCE_TILT, HandController
 from hoap_actions.controllers.wholebody_ik import BODY, BODY_SPEED, IKStatus, WholeBodyIK, polygon_distance
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
@@ -159,6 +159,47 @@ def test_legs_settle_without_cycling_near_straight_knees(standing):
         reversals[label] = _knee_reversals(ik, target)
     assert reversals["undamped"] > 20, f"the scenario no longer provokes the cycle: {reversals}"
     assert reversals["default"] == 0, reversals
+
+
+def test_hand_yields_while_a_sole_tilts(standing, monkeypatch):
+    """A tilted sole freezes the hand reference where the hand is and slows the body; once the soles
+    are level for BALANCE_HOLD the hand carries on to its target."""
+    sim, robot, hand, state = standing
+    sim.restore_state(state)
+    hand.reset()
+    tilt = {"rad": 0.0}
+    monkeypatch.setattr(robot, "sole_tilt", lambda: tilt["rad"])
+    target = robot.frame_pose("r_tcp")[0] + np.array([0.04, 0.0, 0.02])
+    hand.set_target(target)
+    for _ in range(24):
+        hand.tick()
+        sim.step(1)
+    assert not hand.yielding
+    tilt["rad"] = 2 * BALANCE_TILT
+    hand.tick()
+    sim.step(1)
+    assert hand.yielding
+    held = hand.reference.copy()
+    assert np.linalg.norm(held - robot.frame_pose("r_tcp")[0]) < 0.003  # where the hand is, not the target
+    body = [hand.ik.joint_names.index(name) for name in BODY]
+    q = hand.ik.q.copy()
+    for _ in range(48):
+        hand.tick()
+        sim.step(1)
+        np.testing.assert_allclose(hand.reference, held, atol=1e-9)
+        assert np.abs(hand.ik.q[body] - q[body]).max() <= BALANCE_BODY_SPEED * hand.dt + 1e-9
+        q = hand.ik.q.copy()
+    tilt["rad"] = 0.0
+    hold_ticks = int(round(BALANCE_HOLD / hand.dt))
+    for _ in range(hold_ticks):
+        hand.tick()
+        sim.step(1)
+    assert not hand.yielding
+    for _ in range(TICKS):
+        hand.tick()
+        sim.step(1)
+    assert np.linalg.norm(robot.frame_pose("r_tcp")[0] - target) < 0.003
+    assert not robot.has_fallen()
 
 
 def test_solver_failure_holds_the_last_posture(standing):
