@@ -1,8 +1,8 @@
 """The bad-input catalogue: what a user may pass that once killed the process or lost data.
 
 One test per catalogue row, named after what it checks. Each row that could end the interpreter
-runs in a subprocess, so a regression fails the test instead of ending pytest. Rows 7-8 (balance,
-servo speeds) and 9-11, 16-18 (model and dataset files) follow the same naming in this module.
+runs in a subprocess, so a regression fails the test instead of ending pytest. The slow soak test
+(tests/test_soak.py) runs rows 7-8 for 40 000 steps.
 """
 
 from __future__ import annotations
@@ -368,6 +368,49 @@ def test_row15_out_of_range_actions_are_clipped_and_info_says_so():
     (clipped_obs, clipped_flag), (unit_obs, unit_flag) = runs
     assert clipped_flag and not unit_flag
     np.testing.assert_array_equal(clipped_obs, unit_obs)  # 5.0 acts exactly as 1.0
+
+
+# ------------------------------------------------------------ rows 7-8: balance and servo speeds
+def test_row7_ee_delta_random_actions_seed_1001_do_not_fall():
+    """These 800 actions (float32, as the action space's samples) on the layout of seed
+    1001 made the robot fall at step 529. The knees cycled at the IK's speed limit and the body's
+    motion rocked the feet until they tipped over the heels."""
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta").unwrapped
+    env.reset(seed=1001)
+    actions = np.random.default_rng(123).uniform(-1, 1, (2000, 4))[1200:].astype(np.float32)
+    for step, action in enumerate(actions, start=1):
+        _, _, terminated, _, info = env.step(action)
+        assert not info["fallen"], f"the robot fell at step {step}"
+        assert not terminated, f"the episode ended at step {step} without a fall: {info}"
+    env.close()
+
+
+def test_row8_joint_delta_joint_speeds_stay_within_their_limits():
+    """Random joint_delta actions, watched every physics tick: the motors' maxVelocity alone let
+    contacts and the other joints whip a 5 rad/s joint to 23 rad/s; the solver's clamp holds them."""
+    env = gymnasium.make("hoap_actions/PegInsert-v0")
+    base = env.unwrapped
+    robot, sim = base.robot, base.sim
+    fastest = np.zeros(len(robot.joint_names))
+    step_physics = sim.step
+
+    def step_and_watch(n: int = 1) -> None:
+        for _ in range(n):
+            step_physics(1)
+            np.maximum(fastest, np.abs(robot.joint_velocities()), out=fastest)
+
+    sim.step = step_and_watch
+    env.reset(seed=3)
+    rng = np.random.default_rng(3)
+    for _ in range(400):
+        _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        if terminated or truncated:
+            env.reset()
+    env.close()
+    ratio = fastest / robot.max_velocity
+    worst = int(np.argmax(ratio))
+    assert ratio[worst] <= 1.0 + 1e-6, f"{robot.joint_names[worst]} reached {fastest[worst]:.2f} rad/s"
+    assert ratio.max() > 0.5, "the random actions hardly moved the joints"
 
 
 # ---------------------------------------------------------------------- rows 9-11: model files
