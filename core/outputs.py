@@ -186,14 +186,21 @@ def claimed_file(path: str | os.PathLike, overwrite: bool = False, what: str = "
     exception the partial is removed and ``path`` is untouched.
     """
     path = check_output_path(path, what)
-    _make_folder(path.parent, what)
-    claim = _Claim(path, path.with_name(f".{path.stem}{PARTIAL_MARK}{path.suffix}"), folder=False, what=what)
+    with _claimed(path, path.with_name(f".{path.stem}{PARTIAL_MARK}{path.suffix}"), False, overwrite, what) as partial:
+        yield partial
+        _publish(partial, path, overwrite, what)
+
+
+@contextlib.contextmanager
+def _claimed(target: Path, partial: Path, folder: bool, overwrite: bool, what: str) -> Iterator[Path]:
+    """The checks and the lock every claim takes at entry; the partial removed and the lock released at exit."""
+    _make_folder(target.parent, what)
+    claim = _Claim(target, partial, folder=folder, what=what)
     try:
-        if path.exists() and not overwrite:
-            _refuse_existing(path, what)
-        _sweep_stale_partials(path.parent, keep=claim.partial)
+        if target.exists() and not overwrite:
+            _refuse_existing(target, what)
+        _sweep_stale_partials(target.parent, keep=claim.partial)
         yield claim.partial
-        _publish(claim.partial, path, overwrite, what)
     finally:
         claim.discard()
         claim.release()
@@ -259,27 +266,19 @@ def claimed_directory(path: str | os.PathLike, overwrite: bool = False, what: st
         raise InvalidInputError(f"{path} exists and is not a directory; the {what} need a folder of their own")
     if path.name in ("", ".", ".."):
         raise InvalidInputError(f"the {what} path {path} does not name a folder")
-    _make_folder(path.parent, what)
-    claim = _Claim(path, path.with_name(f".{path.name}{PARTIAL_MARK}"), folder=True, what=what)
-    try:
-        if path.exists() and not overwrite:
-            _refuse_existing(path, what)
-        _sweep_stale_partials(path.parent, keep=claim.partial)
-        for leftover in claim.partial.iterdir():  # a killed run's files: start afresh
+    with _claimed(path, path.with_name(f".{path.name}{PARTIAL_MARK}"), True, overwrite, what) as staging:
+        for leftover in staging.iterdir():  # a killed run's files: start afresh
             shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
-        yield claim.partial
+        yield staging
         if path.exists() and overwrite:
             old = path.with_name(f".{path.name}.hoap-replaced-{os.getpid()}")
             os.rename(path, old)
-            os.rename(claim.partial, path)
+            os.rename(staging, path)
             shutil.rmtree(old, ignore_errors=True)
         else:
             try:
-                os.rename(claim.partial, path)
+                os.rename(staging, path)
             except OSError as exc:
                 if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
                     _refuse_existing(path, what)
                 raise
-    finally:
-        claim.discard()
-        claim.release()

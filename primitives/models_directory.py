@@ -12,12 +12,12 @@ one ``class_<id>.npz`` (a :class:`~hoap_actions.primitives.parametric_hmm.Parame
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from hoap_actions.errors import DataFileError
+from hoap_actions.primitives.json_files import read_json_model
 
 __all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array", "names",
            "positive", "read_manifest"]
@@ -31,15 +31,9 @@ MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
 
 def read_manifest(path: Path) -> dict:
     """The manifest as a JSON object (its kind and version are checked by the estimator base)."""
-    try:
-        document = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise DataFileError(f"{path} is missing: a models directory holds {', '.join(MODELS_FILES)} and class_<id>.npz") from None
-    except (OSError, ValueError) as exc:
-        raise DataFileError(f"{path} is not a readable JSON manifest: {exc}") from None
-    if not isinstance(document, dict):
-        raise DataFileError(f"{path} is not an {KIND} manifest (a JSON object with kind {KIND!r})")
-    return document
+    if not path.is_file():
+        raise DataFileError(f"{path} is missing: a models directory holds {', '.join(MODELS_FILES)} and class_<id>.npz")
+    return read_json_model(path, f"{KIND} manifest")
 
 
 def check_manifest(path: Path, document: dict) -> None:

@@ -137,7 +137,7 @@ def edit_manifest(path, change):
         (lambda p: edit_manifest(p, lambda m: m["classes"].pop()), "do not match the discovery"),
         (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(effect_centre=[0, 1])), "effect_centre must be"),
         (lambda p: edit_manifest(p, lambda m: m["classes"][0].update(effect_basis=[[0.0]] * 6)), "effect directions"),
-        (lambda p: (p / MANIFEST).write_text("{nonsense"), "not a readable JSON manifest"),
+        (lambda p: (p / MANIFEST).write_text("{nonsense"), "not a readable JSON ActionModels manifest"),
     ],
     ids=["missing-dir", "no-manifest", "missing-class", "no-grammar", "other-version", "bad-fps", "bad-params",
          "unknown-param", "bad-exit", "other-kind",
