@@ -1,0 +1,392 @@
+"""Locate the pegs and the board's holes in world coordinates from one overhead rgb-d image.
+
+Its one job: turn a rendered ``rgb`` (H, W, 3) uint8 image, its ``depth`` (H, W, metres along the
+camera's view axis) and the :class:`~hoap_actions.envs.sim.Camera` that took it into peg and hole
+positions (m) with a confidence, never guessing a position it did not see.
+
+Method (OpenCV): every pixel is back-projected to a world point with its depth and the camera's
+inverse projection (:func:`backproject`). Pegs are found by colour: saturated pixels whose hue lies
+nearest a peg's known colour (``scene.PEG_COLOURS``), kept only where their world points lie on the
+table at a peg's height; of each colour the largest such blob is the peg. Holes are the openings of
+the board's top surface: pixels whose world height is the board's top (``scene.BOARD_SIZE[2]``),
+joined into components; a gap that the top surface encloses and whose size is an opening's is a
+hole. Holes hidden by the arm are inferred from the seen ones and the board's known hole row, and
+flagged as inferred with a lower confidence.
+
+What "the centre" means (and what the simulator's truth is compared with):
+
+* a peg's centre is its centre of mass, the PyBullet base position of ``peg_<colour>``. A standing
+  peg's x-y is the mean of its top-face points (the face at the highest measured height, which
+  nothing hides but a hand), its z that height minus half the peg's length. A lying peg's x-y is
+  its silhouette's centroid on the plane of its axis, its z its highest point minus its radius.
+  A top face partly covered by a hand is fitted by a circle of the peg's radius through its
+  uncovered rim.
+* a hole's centre is its axis at the board's top surface (``Scene.hole_positions``): the centroid
+  of its opening's pixels, each intersected with the plane of the measured top surface. That plane
+  is parallel to the image of a downward camera, so the centroid is the opening's true centre.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from hoap_actions.envs import scene, world
+from hoap_actions.envs.sim import Camera
+from hoap_actions.errors import InvalidInputError
+
+PEG_COLOURS_RGB: dict[str, np.ndarray] = {name: np.array(rgba[:3]) for name, rgba in scene.PEG_COLOURS.items()}
+MIN_PEG_SATURATION = 0.45  # HSV saturation (0..1) of a peg pixel: the table (0.31), board and robot are duller
+MAX_HUE_DISTANCE_DEG = 20.0  # a peg pixel's hue lies within this of its colour's hue (the colours are >= 100 deg apart)
+HEIGHT_TOLERANCE = 0.0015  # m, how far a surface point may lie from the height it is expected at
+PEG_HEIGHT_MARGIN = 0.004  # m, a peg's highest point lies between 2 r and L, give or take this
+OCCLUDER_CLEARANCE = 0.003  # m, a neighbour this much higher than a peg's top face covers it
+MIN_TOP_FACE_FRACTION = 0.25  # a peg whose visible top face is smaller than this part of a full face is not located
+MIN_BOARD_FRACTION = 0.2  # of the board's top area that must be seen for holes to be looked for
+MIN_BOARD_PIECE_AREA = 20e-6  # m^2, smaller patches at the board's height are peg sides or the robot's edges
+BOARD_SEARCH_PX = 4  # pixels around the seen top surface whose non-top points must lie off the board
+BOARD_FIT_SCALE = 0.001  # m, residual beyond which the board fit counts a point as an outlier (soft L1)
+MIN_SEEN_OPENING_FRACTION = 0.5  # a hole whose opening is less seen than this is flagged as inferred
+# Where in the continuous image of Camera.project TinyRenderer samples pixel (row r, column c):
+# at (c + 0, r + 1), not at the pixel's centre (c + 0.5, r + 0.5); measured on seeds 0-49, where
+# centre sampling put every peg and hole 0.6 mm (half a pixel) off along both image axes.
+PIXEL_SAMPLE_UV = (0.0, 1.0)
+# TinyRenderer draws a peg's top face this far above its true top (measured: 50.98 mm for pegs whose
+# top is at 49.99 mm on seeds 0-49; the board's top is drawn where it is).
+PEG_TOP_RENDER_OFFSET = 0.001  # m
+FACE_TOLERANCE = 0.0005  # m, a top-face point's distance from the face's fitted plane (rendered faces are flat)
+MIN_LEAN = math.radians(3.0)  # rad, a top face tilted less is taken as level (12 px faces give ~1 deg of noise)
+TOP_FACE_REFITS = 2  # plane fits of a peg's top face: the second picks up a leaning face's lower side
+TABLE_XY_MARGIN = 0.01  # m, points this far beyond the table's edges are not on the table
+
+
+@dataclass(frozen=True)
+class PegDetection:
+    """A peg of ``colour`` (a key of ``scene.PEG_COLOURS``): centre of mass ``position_m`` (3,) (m),
+    ``standing`` upright or lying, ``confidence`` in (0, 1] (the seen part of its top face or silhouette)."""
+
+    colour: str
+    position_m: np.ndarray
+    standing: bool
+    confidence: float
+
+
+@dataclass(frozen=True)
+class HoleDetection:
+    """A hole: its axis at the board's top surface ``position_m`` (3,) (m), ``confidence`` in (0, 1];
+    ``inferred`` when it was hidden and placed from the seen holes and the board's hole row."""
+
+    position_m: np.ndarray
+    confidence: float
+    inferred: bool = False
+
+
+@dataclass(frozen=True)
+class Detections:
+    """What one image shows: pegs in the asked colours' order, holes along the board's row, and what
+    was asked for but not found (``missing_colours``; ``board_found`` False when no board was seen)."""
+
+    pegs: tuple[PegDetection, ...]
+    holes: tuple[HoleDetection, ...]
+    missing_colours: tuple[str, ...] = ()
+    board_found: bool = True
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def complete(self) -> bool:
+        """Every asked peg and every hole of the board was located."""
+        return not self.missing_colours and self.board_found and len(self.holes) == scene.N_HOLES
+
+    def peg(self, colour: str) -> PegDetection | None:
+        """The peg of ``colour``, or None when it was not found."""
+        return next((p for p in self.pegs if p.colour == colour), None)
+
+
+# ---------------------------------------------------------------------------------------- geometry
+def backproject(camera: Camera, u: np.ndarray, v: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """World points (..., 3) (m) of pixel coordinates ``u`` (right), ``v`` (down), in the continuous
+    convention of :meth:`Camera.project` (pixel ``j`` spans ``[j, j + 1)``), at ``depth`` (m along the
+    view axis, as :meth:`Sim.render` gives it). Inverse of ``camera.project``."""
+    u, v, depth = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (u, v, depth)))
+    projection = camera.projection_matrix()
+    ndc_x = 2.0 * u / camera.width - 1.0
+    ndc_y = 1.0 - 2.0 * v / camera.height
+    eye = np.stack([ndc_x * depth / projection[0, 0], ndc_y * depth / projection[1, 1], -depth], axis=-1)
+    view = camera.view_matrix()
+    return (eye - view[:3, 3]) @ view[:3, :3]  # rows of R are the camera axes: R^T (p - t)
+
+
+def rays_to_plane(camera: Camera, u: np.ndarray, v: np.ndarray, height: float) -> np.ndarray:
+    """World points (..., 3) where the rays through pixel coordinates ``u``, ``v`` meet the plane
+    ``z = height`` (m); used for openings, which have no surface of their own to give a depth."""
+    eye = np.asarray(camera.eye, dtype=float)
+    direction = backproject(camera, u, v, np.ones_like(np.asarray(u, dtype=float))) - eye
+    t = (height - eye[2]) / direction[..., 2]
+    return eye + t[..., None] * direction
+
+
+def _pixel_points(camera: Camera, depth: np.ndarray) -> np.ndarray:
+    """World points (H, W, 3) of every pixel's centre."""
+    v, u = np.mgrid[0 : camera.height, 0 : camera.width]
+    return backproject(camera, u + PIXEL_SAMPLE_UV[0], v + PIXEL_SAMPLE_UV[1], depth)
+
+
+# -------------------------------------------------------------------------------------- validation
+def _check_inputs(rgb: object, depth: object, camera: object) -> tuple[np.ndarray, np.ndarray]:
+    if not isinstance(camera, Camera):
+        raise InvalidInputError(f"camera must be a hoap_actions.envs.sim.Camera; got {type(camera).__name__}")
+    shape = (camera.height, camera.width)
+    if not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8 or rgb.shape != (*shape, 3):
+        got = f"{rgb.dtype} {rgb.shape}" if isinstance(rgb, np.ndarray) else type(rgb).__name__
+        raise InvalidInputError(f"rgb must be a uint8 array of shape {(*shape, 3)} (the camera's H, W, 3); got {got}")
+    if not isinstance(depth, np.ndarray) or depth.dtype.kind != "f" or depth.shape != shape:
+        got = f"{depth.dtype} {depth.shape}" if isinstance(depth, np.ndarray) else type(depth).__name__
+        raise InvalidInputError(f"depth must be a float array of shape {shape} in metres; got {got}")
+    if not np.all(np.isfinite(depth)) or depth.min() <= 0.0:
+        raise InvalidInputError("depth must be finite and positive (metres along the view axis)")
+    corners = np.array([[x, y, 0.0] for x in (world.WORK_AREA_LOW[0], world.WORK_AREA_HIGH[0])
+                        for y in (world.WORK_AREA_LOW[1], world.WORK_AREA_HIGH[1])])
+    in_front = (np.c_[corners, np.ones(4)] @ camera.view_matrix().T)[:, 2] < -camera.near
+    pixels = camera.project(corners)
+    inside = (pixels >= 0).all(axis=1) & (pixels[:, 0] <= camera.width) & (pixels[:, 1] <= camera.height)
+    if not np.all(in_front & inside):
+        raise InvalidInputError(
+            "the camera does not see the whole work area of the table (its corners at "
+            f"{world.WORK_AREA_LOW} .. {world.WORK_AREA_HIGH} m); accepted: a camera looking down on it, "
+            "such as the scene's 'overhead' camera"
+        )
+    return rgb, np.asarray(depth, dtype=float)
+
+
+def _on_table(points: np.ndarray) -> np.ndarray:
+    x, y = points[..., 0], points[..., 1]
+    x_low = world.TABLE_NEAR_EDGE_X - TABLE_XY_MARGIN
+    x_high = world.TABLE_NEAR_EDGE_X + world.TABLE_SIZE[0] + TABLE_XY_MARGIN
+    return (x >= x_low) & (x <= x_high) & (np.abs(y) <= world.TABLE_SIZE[1] / 2 + TABLE_XY_MARGIN)
+
+
+# -------------------------------------------------------------------------------------------- pegs
+def _hue_distance_deg(hue: np.ndarray, reference_rgb: np.ndarray) -> np.ndarray:
+    ref = cv2.cvtColor(np.uint8(np.round(reference_rgb * 255))[None, None], cv2.COLOR_RGB2HSV_FULL)[0, 0, 0]
+    delta = np.abs(hue.astype(float) - float(ref)) * 360.0 / 256.0
+    return np.minimum(delta, 360.0 - delta)
+
+
+def _colour_masks(rgb: np.ndarray, colours: tuple[str, ...]) -> dict[str, np.ndarray]:
+    hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV_FULL)
+    saturated = (hsv[..., 1] >= MIN_PEG_SATURATION * 255) & (hsv[..., 2] >= 40)
+    distances = {name: _hue_distance_deg(hsv[..., 0], PEG_COLOURS_RGB[name]) for name in PEG_COLOURS_RGB}
+    nearest = np.argmin(np.stack(list(distances.values())), axis=0)
+    names = list(PEG_COLOURS_RGB)
+    return {
+        name: saturated & (nearest == names.index(name)) & (distances[name] <= MAX_HUE_DISTANCE_DEG) for name in colours
+    }
+
+
+def _locate_peg(colour: str, mask: np.ndarray, points: np.ndarray) -> PegDetection | None:
+    """The peg in ``mask``'s largest plausible blob, or None."""
+    radius, length = scene.PEG_RADIUS, scene.PEG_LENGTH
+    z = points[..., 2]
+    plausible = mask & _on_table(points) & (z <= length + PEG_HEIGHT_MARGIN) & (z >= -PEG_HEIGHT_MARGIN)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(plausible.astype(np.uint8), connectivity=8)
+    best: PegDetection | None = None
+    for label in np.argsort(-stats[1:, cv2.CC_STAT_AREA]) + 1:
+        blob = labels == label
+        top_z = float(np.max(z[blob]))
+        if not 2 * radius - PEG_HEIGHT_MARGIN <= top_z <= length + PEG_HEIGHT_MARGIN:
+            continue
+        standing = top_z > (2 * radius + length) / 2
+        best = (_standing_peg if standing else _lying_peg)(colour, blob, points, top_z)
+        if best is not None:
+            break
+    return best
+
+
+def _standing_peg(colour: str, blob: np.ndarray, points: np.ndarray, top_z: float) -> PegDetection | None:
+    """A standing (or leaning) peg from its top face: the blob's points in the plane fitted to those
+    near its highest point; the centre lies half a length below the face's centre along its normal."""
+    radius, length = scene.PEG_RADIUS, scene.PEG_LENGTH
+    top = blob & (np.abs(points[..., 2] - top_z) <= HEIGHT_TOLERANCE)
+    for _ in range(TOP_FACE_REFITS):
+        face = points[top]
+        middle = face.mean(axis=0)
+        normal = np.linalg.svd(face - middle, full_matrices=False)[2][2]
+        normal = normal if normal[2] > 0 else -normal
+        if normal[2] > math.cos(MIN_LEAN):  # a face this level is noise in the fit: take it as level
+            normal = np.array([0.0, 0.0, 1.0])
+        top = blob & (np.abs((points - middle) @ normal) <= FACE_TOLERANCE)
+    pixel_area = _pixel_area(points, top)
+    fraction = min(1.0, top.sum() * pixel_area / (math.pi * radius**2))
+    if fraction < MIN_TOP_FACE_FRACTION:
+        return None
+    middle = points[top].mean(axis=0)
+    ring = cv2.dilate(top.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) & ~top
+    covered = ring & ((points - middle) @ normal > OCCLUDER_CLEARANCE)
+    if covered.any():
+        rim = top & cv2.dilate((ring & ~covered).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        rim = rim & ~cv2.dilate(covered.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        xy = _fit_circle(points[rim][:, :2], radius - math.sqrt(pixel_area) / 2, middle[:2])
+        middle = np.array([*xy, middle[2]])
+    centre = middle - (length / 2 + PEG_TOP_RENDER_OFFSET) * normal
+    return PegDetection(colour, centre, True, float(fraction))
+
+
+def _lying_peg(colour: str, blob: np.ndarray, points: np.ndarray, top_z: float) -> PegDetection:
+    radius, length = scene.PEG_RADIUS, scene.PEG_LENGTH
+    xy = points[blob][:, :2]
+    fraction = min(1.0, len(xy) * _pixel_area(points, blob) / (2 * radius * length))
+    return PegDetection(colour, np.array([*xy.mean(axis=0), top_z - radius]), False, float(fraction))
+
+
+def _pixel_area(points: np.ndarray, where: np.ndarray) -> float:
+    """Mean world area (m^2) a pixel covers around ``where`` (from neighbouring pixels' points)."""
+    dx = np.linalg.norm(points[:, 1:] - points[:, :-1], axis=-1)
+    dy = np.linalg.norm(points[1:] - points[:-1], axis=-1)
+    v, u = np.nonzero(where)
+    v, u = np.minimum(v, dy.shape[0] - 1), np.minimum(u, dx.shape[1] - 1)
+    return float(np.median(dx[v, u]) * np.median(dy[v, u]))
+
+
+def _fit_circle(xy: np.ndarray, radius: float, start: np.ndarray) -> np.ndarray:
+    """Centre of the circle of ``radius`` through points ``xy`` (N, 2), by Gauss-Newton from ``start``."""
+    centre = np.asarray(start, dtype=float).copy()
+    for _ in range(20):
+        offset = xy - centre
+        distance = np.maximum(np.linalg.norm(offset, axis=1), 1e-9)
+        residual = distance - radius
+        jacobian = -offset / distance[:, None]
+        step, *_ = np.linalg.lstsq(jacobian, -residual, rcond=None)
+        centre += step
+        if np.linalg.norm(step) < 1e-7:
+            break
+    return centre
+
+
+# ------------------------------------------------------------------------------------------- holes
+def _opening_side() -> float:
+    """Side (m) of an opening as seen: the chamfer's outer square less the part of the chamfer within
+    :data:`HEIGHT_TOLERANCE` of the top, which counts as top surface."""
+    return scene.HOLE_SIZE + 2 * scene.CHAMFER - 2 * HEIGHT_TOLERANCE
+
+
+def _opening_area() -> float:
+    return _opening_side() ** 2
+
+
+def _locate_holes(camera: Camera, points: np.ndarray) -> tuple[tuple[HoleDetection, ...], bool, list[str]]:
+    """The holes from the board's pose, fitted to its seen top surface and to what is seen around it."""
+    board_top = scene.BOARD_SIZE[2]
+    z = points[..., 2]
+    top = (np.abs(z - board_top) <= HEIGHT_TOLERANCE) & _on_table(points)
+    if not top.any():
+        return (), False, ["no board top surface in view"]
+    pixel_area = _pixel_area(points, top)
+    board_area = scene.BOARD_SIZE[0] * scene.BOARD_SIZE[1] - scene.N_HOLES * _opening_area()
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(top.astype(np.uint8), connectivity=8)
+    pieces = np.isin(labels, 1 + np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] * pixel_area >= MIN_BOARD_PIECE_AREA))
+    if pieces.sum() * pixel_area < MIN_BOARD_FRACTION * board_area:
+        return (), False, ["no board top surface in view"]
+    surface_z = float(np.median(z[pieces]))
+    near = cv2.dilate(pieces.astype(np.uint8), np.ones((3, 3), np.uint8), iterations=BOARD_SEARCH_PX) > 0
+    covered = z > surface_z + OCCLUDER_CLEARANCE
+    inside_xy = points[pieces][:, :2]
+    v, u = np.nonzero(near & ~pieces & ~covered)
+    outside_xy = rays_to_plane(camera, u + PIXEL_SAMPLE_UV[0], v + PIXEL_SAMPLE_UV[1], surface_z)[:, :2]
+    centre, yaw = _fit_board(inside_xy, outside_xy)
+    holes_xy = centre + scene.HOLE_LOCAL_XY @ _rotation(yaw).T
+    holes = []
+    notes: list[str] = []
+    for xy in holes_xy:
+        seen = 1.0 - _covered_fraction(camera, covered, xy, surface_z)
+        inferred = seen < MIN_SEEN_OPENING_FRACTION
+        holes.append(HoleDetection(np.array([*xy, surface_z]), float(seen), inferred=inferred))
+        if inferred:
+            notes.append(f"hole at {np.round(xy, 4)} m is mostly hidden: placed from the board's seen pose")
+    holes.sort(key=lambda h: h.position_m[1])
+    return tuple(holes), True, notes
+
+
+def _board_residuals(pose: np.ndarray, inside_xy: np.ndarray, outside_xy: np.ndarray) -> np.ndarray:
+    """How far (m) seen top-surface points lie outside the board's top (rectangle less openings), and
+    seen points that are not top surface lie inside it, for a board at ``pose`` = (x, y, yaw)."""
+    half_board = np.array(scene.BOARD_SIZE[:2]) / 2
+    half_opening = _opening_side() / 2
+
+    def local(xy: np.ndarray) -> np.ndarray:
+        return (xy - pose[:2]) @ _rotation(pose[2])
+
+    def depth_in_openings(p: np.ndarray) -> np.ndarray:
+        rel = np.abs(p[:, None, :] - scene.HOLE_LOCAL_XY[None])  # (N, holes, 2)
+        return np.max(np.min(half_opening - rel, axis=2), axis=1).clip(min=0.0)
+
+    p_in = local(inside_xy)
+    beyond = np.linalg.norm(np.maximum(np.abs(p_in) - half_board, 0.0), axis=1)
+    inside_error = beyond + depth_in_openings(p_in)
+    p_out = local(outside_xy)
+    within_board = np.min(half_board - np.abs(p_out), axis=1).clip(min=0.0)
+    rel = np.abs(p_out[:, None, :] - scene.HOLE_LOCAL_XY[None])
+    to_opening = np.min(np.linalg.norm(np.maximum(rel - half_opening, 0.0), axis=2), axis=1)
+    outside_error = np.minimum(within_board, to_opening)
+    return np.concatenate([inside_error, outside_error])
+
+
+def _fit_board(inside_xy: np.ndarray, outside_xy: np.ndarray) -> tuple[np.ndarray, float]:
+    """Board centre (2,) and yaw (rad, within +-90 degrees) that best explain the seen points."""
+    (cx, cy), (w, h), angle = cv2.minAreaRect(inside_xy.astype(np.float32))
+    yaw0 = math.radians(angle) + (0.0 if h >= w else math.pi / 2)  # the long side is the board's y axis
+    yaw0 = (yaw0 + math.pi / 2) % math.pi - math.pi / 2
+    best = None
+    for start in (yaw0, yaw0 + math.pi / 2):
+        fit = least_squares(
+            _board_residuals, np.array([cx, cy, start]), args=(inside_xy, outside_xy),
+            loss="soft_l1", f_scale=BOARD_FIT_SCALE, x_scale=np.array([0.01, 0.01, 0.1]),
+        )
+        if best is None or fit.cost < best.cost:
+            best = fit
+    x, y, yaw = best.x
+    return np.array([x, y]), float((yaw + math.pi / 2) % math.pi - math.pi / 2)
+
+
+def _rotation(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def _covered_fraction(camera: Camera, covered: np.ndarray, xy: np.ndarray, surface_z: float) -> float:
+    """Part of the image of the opening at ``xy`` that something above the board covers."""
+    half = _opening_side() / 2
+    corners = np.array([[xy[0] + dx, xy[1] + dy, surface_z] for dx in (-half, half) for dy in (-half, half)])
+    pixels = camera.project(corners)
+    u0, v0 = np.clip(np.floor(pixels.min(axis=0)).astype(int), 0, None)
+    u1, v1 = np.ceil(pixels.max(axis=0)).astype(int)
+    window = covered[v0:v1, u0:u1]
+    return float(window.mean()) if window.size else 1.0
+
+
+# ------------------------------------------------------------------------------------------ facade
+def locate(
+    rgb: np.ndarray, depth: np.ndarray, camera: Camera, colours: tuple[str, ...] | None = None
+) -> Detections:
+    """Pegs of ``colours`` (default: every colour of ``scene.PEG_COLOURS``) and the board's holes seen
+    in one image. Raises :class:`InvalidInputError` for an image that does not match ``camera`` or a
+    camera that does not see the table's work area; what is not seen is flagged, never made up."""
+    colours = tuple(scene.PEG_COLOURS) if colours is None else tuple(colours)
+    unknown = [c for c in colours if c not in scene.PEG_COLOURS]
+    if unknown:
+        raise InvalidInputError(f"unknown peg colour(s) {unknown}; accepted: {list(scene.PEG_COLOURS)}")
+    rgb, depth = _check_inputs(rgb, depth, camera)
+    points = _pixel_points(camera, depth)
+    masks = _colour_masks(rgb, colours)
+    found = {colour: _locate_peg(colour, masks[colour], points) for colour in colours}
+    holes, board_found, notes = _locate_holes(camera, points)
+    return Detections(
+        pegs=tuple(p for p in found.values() if p is not None),
+        holes=holes,
+        missing_colours=tuple(c for c, p in found.items() if p is None),
+        board_found=board_found,
+        notes=tuple(notes),
+    )
