@@ -155,7 +155,12 @@ def _recognize(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="hoap-actions", description=__doc__.splitlines()[0])
+    parser = _Parser(
+        prog="hoap-actions",
+        description="A humanoid that learns table-top manipulation by watching: run its demo, record simulated "
+        "human demonstrations, discover action primitives in them, learn models of them, recognise them.",
+        epilog="Mistakes in arguments or files end with one line on stderr and exit status 2.",
+    )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -181,7 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.set_defaults(func=_record)
 
     disc = sub.add_parser("discover", help="discover action primitives in recorded demonstrations (paper's method)")
-    disc.add_argument("--demos", type=_path, required=True, help="demonstrations dataset (.h5, from `record`)")
+    disc.add_argument("--demos", type=_path, required=True, help="demonstrations dataset (.h5, from the record command)")
     disc.add_argument("--out", type=_path, required=True, help="directory for the model, classes, grammar, figures")
     disc.add_argument("--threshold", type=float, help="state-merge threshold, nats (default: the tuned one)")
     disc.add_argument("--spacing", type=float, help="arc length per Gaussian, m (default: the tuned one)")
@@ -189,17 +194,19 @@ def build_parser() -> argparse.ArgumentParser:
     disc.set_defaults(func=_discover)
 
     learn = sub.add_parser("learn", help="learn one parametric HMM per discovered primitive class, and the grammar")
-    learn.add_argument("--demos", type=_path, nargs="+", required=True, help="demonstrations datasets (.h5, from `record`)")
+    learn.add_argument("--demos", type=_path, nargs="+", required=True,
+                       help="demonstrations datasets (.h5, from the record command)")
     learn.add_argument("--out", type=_path, required=True, help="models directory to write")
     learn.add_argument("--discovery", type=_path,
-                       help="a `discover` folder fitted on the same --demos (default: run discovery here)")
+                       help="a folder the discover command wrote for the same --demos (default: run discovery here)")
     learn.add_argument("--overwrite", action="store_true", help="replace an existing models directory at --out")
     learn.set_defaults(func=_learn)
 
     rec = sub.add_parser("recognize", help="recognise every episode of a recording from the arm markers alone")
-    rec.add_argument("--demos", type=_path, required=True, help="a recording the models never saw (.h5, from `record`)")
-    rec.add_argument("--models", type=_path, help="models directory (from `learn`; default: the shipped models, "
-                     "learned from ten `paper` recordings)")
+    rec.add_argument("--demos", type=_path, required=True,
+                     help="a recording the models never saw (.h5, from the record command)")
+    rec.add_argument("--models", type=_path, help="models directory (from the learn command; default: the models "
+                     "shipped in the package, learned from ten paper-preset recordings)")
     rec.add_argument("--json", type=_path, help="write the figures here")
     rec.add_argument("--jobs", type=_positive_int, default=1, help="worker processes (the figures do not depend on it)")
     rec.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,
