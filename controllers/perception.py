@@ -33,11 +33,10 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
-
 from hoap_actions.envs import scene, world
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
+from scipy.optimize import least_squares
 
 PEG_COLOURS_RGB: dict[str, np.ndarray] = {name: np.array(rgba[:3]) for name, rgba in scene.PEG_COLOURS.items()}
 MIN_PEG_SATURATION = 0.45  # HSV saturation (0..1) of a peg pixel: the table (0.31), board and robot are duller
@@ -192,7 +191,7 @@ def _locate_peg(colour: str, mask: np.ndarray, points: np.ndarray) -> PegDetecti
     radius, length = scene.PEG_RADIUS, scene.PEG_LENGTH
     z = points[..., 2]
     plausible = mask & _on_table(points) & (z <= length + PEG_HEIGHT_MARGIN) & (z >= -PEG_HEIGHT_MARGIN)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(plausible.astype(np.uint8), connectivity=8)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(plausible.astype(np.uint8), connectivity=8)
     best: PegDetection | None = None
     for label in np.argsort(-stats[1:, cv2.CC_STAT_AREA]) + 1:
         blob = labels == label
@@ -286,7 +285,7 @@ def _locate_holes(camera: Camera, points: np.ndarray) -> tuple[tuple[HoleDetecti
         return (), False, ["no board top surface in view"]
     pixel_area = _pixel_area(points, top)
     board_area = scene.BOARD_SIZE[0] * scene.BOARD_SIZE[1] - scene.N_HOLES * _opening_area()
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(top.astype(np.uint8), connectivity=8)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(top.astype(np.uint8), connectivity=8)
     pieces = np.isin(labels, 1 + np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] * pixel_area >= MIN_BOARD_PIECE_AREA))
     if pieces.sum() * pixel_area < MIN_BOARD_FRACTION * board_area:
         return (), False, ["no board top surface in view"]
