@@ -241,3 +241,18 @@ def test_recognize_command_gives_the_same_figures_with_one_or_two_workers(small,
     assert "frame accuracy" in capsys.readouterr().out
     assert main(["recognize", "--demos", str(path), "--models", str(tmp_path / "nothing")]) == 2
     assert "no models directory" in capsys.readouterr().err
+
+
+def test_a_recording_of_other_markers_or_rate_is_refused(small):
+    import dataclasses
+
+    from hoap_actions.primitives.recognition_eval import recognize_recording
+
+    demos, _, models, _ = small
+    other_markers = dataclasses.replace(demos, marker_names=tuple(f"m{i}" for i in range(6)))
+    with pytest.raises(InvalidInputError, match="recognise recordings of the same kind"):
+        recognize_recording(models, other_markers)
+    with pytest.raises(InvalidInputError, match="at 50.0 fps"):
+        recognize_recording(models, dataclasses.replace(demos, fps=50.0))
+    with pytest.raises(InvalidInputError, match="jobs must be an int >= 1"):
+        recognize_recording(models, demos, jobs=0)
