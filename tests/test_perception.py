@@ -7,10 +7,9 @@ import math
 from dataclasses import replace
 
 import gymnasium
+import hoap_actions  # noqa: F401 - registers the envs
 import numpy as np
 import pytest
-
-import hoap_actions  # noqa: F401 - registers the envs
 from hoap_actions.controllers.perception import backproject, locate
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.errors import InvalidInputError
