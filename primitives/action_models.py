@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import json
 import logging
+import dataclasses
 import math
 import sys
 import warnings
@@ -58,6 +59,7 @@ from tqdm import tqdm
 from hoap_actions.errors import DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
 from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.base import Estimator, check_is_fitted
+from hoap_actions.primitives.actions import action_level
 from hoap_actions.primitives.connected_recognition import ChainedHMM, chain_classes, exit_probability
 from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
 from hoap_actions.primitives.labels import runs
@@ -156,13 +158,16 @@ class ActionModels(Estimator):
         stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
 
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
-    ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``.
+    ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
+    (dict id -> :class:`ClassModel` of a whole action) and ``action_lifts_`` (dict id -> the highest
+    lift, m, of the object in its runs), both empty without it.
     """
 
-    _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_")
+    _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
+                "action_lifts_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
-    _readable_versions = (FORMAT_VERSION,)
+    _readable_versions = (1, FORMAT_VERSION)
 
     def __init__(
         self,
@@ -227,13 +232,16 @@ class ActionModels(Estimator):
         fps: float,
         marker_names: Sequence[str] | None = None,
         progress: bool = False,
+        O: np.ndarray | None = None,
     ) -> ActionModels:
         """Fit one PHMM per class of ``discovery`` and the grammar of its segmentations.
 
         ``H`` are the demonstrations' arm markers, concatenated ``(N, 18)`` or ``(N, 6, 3)`` (m), with
         ``lengths`` frames each, recorded at ``fps``; ``discovery`` was fitted on the same
         demonstrations in the same order (its segments index them). ``progress`` shows a bar over
-        the class fits when stderr is a terminal.
+        the class fits when stderr is a terminal. With the object poses ``O`` ``(N, 6)`` the action
+        level is learned too (:mod:`~hoap_actions.primitives.actions`): one PHMM per whole action,
+        phi = the object's (or the hand's, for approach and remove) start and end.
         """
         self._check_params()
         hands = _split(H, lengths)
@@ -269,16 +277,42 @@ class ActionModels(Estimator):
         self.classes_ = {int(cid): fitted[cid] for cid in sorted(fitted)}
         self.grammar_ = ActionGrammar(0.0).fit([[int(pid) for pid, *_ in seg] for seg in discovery.segmentations_])
         self.discovery_ = discovery
+        self.actions_, self.action_lifts_ = ({}, {}) if O is None else self._fit_actions(inputs, O, lengths)
         return self
 
+    def _fit_actions(self, inputs: list[np.ndarray], O: np.ndarray, lengths: Sequence[int]
+                     ) -> tuple[dict[int, ClassModel], dict[int, float]]:
+        """One model per whole action: approach and remove are their classes already; each pooled
+        manipulation action gets a PHMM on its whole runs, phi = the object's start and end."""
+        level = action_level(self.discovery_, O, lengths)
+        objects = np.split(np.asarray(O, dtype=float), np.cumsum(lengths)[:-1])
+        actions, lifts = {}, {}
+        for action, kind in enumerate(level.kinds):
+            runs = [r for r in level.runs if level.action(r) == action]
+            if kind != MANIPULATION:
+                whole = next(m for m in self.classes_.values() if m.kind == kind)
+                actions[action], lifts[action] = dataclasses.replace(whole, class_id=action), 0.0
+                continue
+            movements = [inputs[r.demo][r.start:r.end] for r in runs]
+            phis = np.array([np.r_[objects[r.demo][r.start, :3], objects[r.demo][r.end - 1, :3]] for r in runs])
+            actions[action] = self._fit_model(action, kind, movements, phis, None)
+            lifts[action] = max(float(level.signatures[g][:-1].reshape(-1, 3)[:, 1].max())
+                                for g in {r.group for r in runs})
+        return actions, lifts
+
     def _fit_class(self, cls, inputs: list[np.ndarray], covars_prior: np.ndarray | None) -> ClassModel:
-        phis = cls.phis
+        movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
+        return self._fit_model(int(cls.primitive_id), str(cls.kind), movements, cls.phis, covars_prior)
+
+    def _fit_model(self, model_id: int, kind: str, movements: list[np.ndarray], phis: np.ndarray,
+                   covars_prior: np.ndarray | None) -> ClassModel:
+        """A left-right PHMM on ``movements`` with their effects ``phis`` (n, 6), reduced to the
+        directions they vary in (module docstring)."""
         centre = phis.mean(axis=0)
         _, singular, vt = np.linalg.svd(phis - centre, full_matrices=False)
         spread = singular / np.sqrt(len(phis))
         rank = int(min(np.sum(spread > self.effect_tol), max(len(phis) - 2, 0)))
         basis = vt[:rank].T
-        movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
         lengths = np.array([len(m) for m in movements])
         n_states = max(1, int(min(self.max_states, self.state_fraction * lengths.min())))
         phmm = ParametricHMM(
@@ -288,14 +322,30 @@ class ActionModels(Estimator):
         reduced = (phis - centre) @ basis
         phmm.fit(np.concatenate(movements), lengths, reduced)
         leave = exit_probability(phmm, movements, reduced)
-        return ClassModel(int(cls.primitive_id), str(cls.kind), phmm, centre, basis, leave)
+        return ClassModel(model_id, kind, phmm, centre, basis, leave)
 
     # ----------------------------------------------------------------------------- synthesis
     def synthesize(self, class_id: int, phi: np.ndarray, n_frames: int | None = None) -> np.ndarray:
         """Marker trajectory ``(T, M, 3)`` (m) of class ``class_id`` for the effect ``phi`` (6,): initial
         and final location. Only the part of phi along the directions the class's demonstrations
         varied in is used; a phi far outside them warns (ExtrapolationWarning)."""
-        model = self._class(class_id)
+        return self._synthesize(self._class(class_id), phi, n_frames)
+
+    def synthesize_action(self, action_id: int, phi: np.ndarray, n_frames: int | None = None) -> np.ndarray:
+        """Marker trajectory ``(T, M, 3)`` (m) of a whole action (``actions_``) for ``phi`` (6,): for
+        approach and remove the hand's start and end, for a manipulation the object's. Which
+        manipulation carries (lifts) the object: :attr:`action_lifts_` (m)."""
+        check_is_fitted(self)
+        if not self.actions_:
+            raise InvalidInputError("these models have no action level: fit them with the object poses O "
+                                    "(hoap-actions learn does), or load a models directory of format_version 2")
+        try:
+            model = self.actions_[int(action_id)]
+        except (KeyError, TypeError, ValueError):
+            raise InvalidInputError(f"no action {action_id!r}; actions: {sorted(self.actions_)}") from None
+        return self._synthesize(model, phi, n_frames)
+
+    def _synthesize(self, model: ClassModel, phi: np.ndarray, n_frames: int | None) -> np.ndarray:
         phi = _check_phi(phi)
         self._warn_if_extrapolating(model, phi)
         with warnings.catch_warnings():  # said above, in the full phi's terms
@@ -449,12 +499,20 @@ class ActionModels(Estimator):
                  "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability}
                 for cid, m in self.classes_.items()
             ],
+            "actions": [
+                {"id": aid, "kind": m.kind, "file": f"action_{aid}.npz", "effect_centre": m.centre.tolist(),
+                 "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
+                 "lift_m": self.action_lifts_[aid]}
+                for aid, m in self.actions_.items()
+            ],
         }
         (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
         self.discovery_.save(folder / "discovery.json")
         self.grammar_.save(folder / "grammar.json")
         for cid, model in self.classes_.items():
             model.phmm.save(folder / f"class_{cid}.npz")
+        for aid, model in self.actions_.items():
+            model.phmm.save(folder / f"action_{aid}.npz")
 
     @classmethod
     def _read(cls, path: Path) -> tuple[object, object, dict]:
@@ -481,25 +539,16 @@ class ActionModels(Estimator):
         models.covars_prior_ = None if prior is None else finite_array(manifest_path, "covars_prior", prior, (width,))
         models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
         models.grammar_ = ActionGrammar.load(directory / "grammar.json")
-        classes = {}
-        for entry in manifest["classes"]:
-            where = f"{manifest_path}: entry classes[{entry.get('id')!r}]"
-            if not isinstance(entry, dict) or not isinstance(entry.get("id"), int) or entry.get("file") != f"class_{entry.get('id')}.npz":
-                raise DataFileError(f"{where} must hold an int id and its file class_<id>.npz")
-            centre = finite_array(manifest_path, f"classes[{entry['id']}].effect_centre", entry["effect_centre"], (EFFECT_DIM,))
-            basis = np.asarray(entry["effect_basis"], dtype=float)
-            if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
-                raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")
-            phmm = ParametricHMM.load(directory / entry["file"])
-            if phmm.mean_bar_.shape[1] != width or phmm.W_.shape[2] != basis.shape[1]:
-                raise DataFileError(
-                    f"{directory / entry['file']}: the model has {phmm.mean_bar_.shape[1]} features and "
-                    f"{phmm.W_.shape[2]} effect directions; the manifest says {width} and {basis.shape[1]}"
-                )
-            leave = entry.get("exit_probability")
-            if isinstance(leave, bool) or not isinstance(leave, (int, float)) or not 0.0 < leave <= 1.0:
-                raise DataFileError(f"{where}: exit_probability must be a probability in (0, 1]; got {leave!r}")
-            classes[entry["id"]] = ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis, float(leave))
+        classes = {e["id"]: _entry_model(directory, e, "classes", "class", width) for e in _entries(manifest_path, manifest, "classes")}
+        actions = {e["id"]: _entry_model(directory, e, "actions", "action", width)
+                   for e in (_entries(manifest_path, manifest, "actions") if version >= 2 else [])}
+        models.actions_ = dict(sorted(actions.items()))
+        models.action_lifts_ = {}
+        for entry in (manifest["actions"] if version >= 2 else []):
+            lift = entry.get("lift_m")
+            if isinstance(lift, bool) or not isinstance(lift, (int, float)) or not np.isfinite(lift):
+                raise DataFileError(f"{manifest_path}: entry actions[{entry['id']}]: lift_m must be a number (m); got {lift!r}")
+            models.action_lifts_[entry["id"]] = float(lift)
         known = {c.primitive_id for c in models.discovery_.classes_}
         if set(classes) != known or set(models.grammar_.symbols_) - set(classes):
             raise DataFileError(
@@ -511,6 +560,39 @@ class ActionModels(Estimator):
 
 
 # ------------------------------------------------------------------------------------------ helpers
+def _entries(manifest_path: Path, manifest: dict, key: str) -> list[dict]:
+    """The manifest's list ``key`` of models, each an object with an int id and its file ``<prefix>_<id>.npz``."""
+    prefix = {"classes": "class", "actions": "action"}[key]
+    entries = manifest.get(key)
+    if not isinstance(entries, list):
+        raise DataFileError(f"{manifest_path}: entry {key} must be a list of models")
+    for entry in entries:
+        if not isinstance(entry, dict) or not isinstance(entry.get("id"), int) or entry.get("file") != f"{prefix}_{entry.get('id')}.npz":
+            raise DataFileError(f"{manifest_path}: entry {key}[{entry.get('id') if isinstance(entry, dict) else entry!r}] "
+                                f"must hold an int id and its file {prefix}_<id>.npz")
+    return entries
+
+
+def _entry_model(directory: Path, entry: dict, key: str, prefix: str, width: int) -> ClassModel:
+    """One model of the manifest, its numbers checked and its PHMM loaded and matched against them."""
+    manifest_path = directory / MANIFEST
+    where = f"{manifest_path}: entry {key}[{entry['id']}]"
+    centre = finite_array(manifest_path, f"{key}[{entry['id']}].effect_centre", entry.get("effect_centre"), (EFFECT_DIM,))
+    basis = np.asarray(entry.get("effect_basis"), dtype=float)
+    if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
+        raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")
+    phmm = ParametricHMM.load(directory / entry["file"])
+    if phmm.mean_bar_.shape[1] != width or phmm.W_.shape[2] != basis.shape[1]:
+        raise DataFileError(
+            f"{directory / entry['file']}: the model has {phmm.mean_bar_.shape[1]} features and "
+            f"{phmm.W_.shape[2]} effect directions; the manifest says {width} and {basis.shape[1]}"
+        )
+    leave = entry.get("exit_probability")
+    if isinstance(leave, bool) or not isinstance(leave, (int, float)) or not 0.0 < leave <= 1.0:
+        raise DataFileError(f"{where}: exit_probability must be a probability in (0, 1]; got {leave!r}")
+    return ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis, float(leave))
+
+
 def _split(H: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
     H = np.asarray(H, dtype=float)
     if H.ndim == 3:

@@ -96,13 +96,14 @@ def learn(
     episodes, header = load_training_demonstrations(list(demos_paths))
     lengths = [e.T for e in episodes]
     H = np.concatenate([e.H.reshape(e.T, -1) for e in episodes])
+    O = np.concatenate([e.O for e in episodes])
     started = time.perf_counter()
     if discovery_dir is None:
-        discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in episodes]), lengths, H)
+        discovery = PrimitiveDiscovery().fit(O, lengths, H)
     else:
         discovery = _matching_discovery(Path(discovery_dir), lengths)
     discovered = time.perf_counter()
-    models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress)
+    models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress, O=O)
     trained = time.perf_counter()
     phmms = [m.phmm for m in models.classes_.values()]
     frames = sum(s.end - s.start for c in discovery.classes_ for s in c.segments)

@@ -256,3 +256,53 @@ def test_a_recording_of_other_markers_or_rate_is_refused(small):
         recognize_recording(models, dataclasses.replace(demos, fps=50.0))
     with pytest.raises(InvalidInputError, match="jobs must be an int >= 1"):
         recognize_recording(models, demos, jobs=0)
+
+
+@pytest.fixture(scope="module")
+def with_actions(small):
+    demos, discovery, _, path = small
+    lengths = [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    O = np.concatenate([e.O for e in demos])
+    return ActionModels().fit(H, lengths, discovery, demos.fps, demos.marker_names, O=O)
+
+
+def test_the_action_level_has_whole_approach_manipulation_and_remove_models(small, with_actions):
+    demos, discovery, _, _ = small
+    kinds = sorted(m.kind for m in with_actions.actions_.values())
+    assert kinds == ["approach", "manipulation", "manipulation", "manipulation", "remove"]  # push, move, rotate
+    lifts = {a: with_actions.action_lifts_[a] for a, m in with_actions.actions_.items() if m.kind == "manipulation"}
+    carry = max(lifts, key=lifts.get)  # the move lifts the block; the push and the rotation do not
+    move_episode = next(i for i, e in enumerate(demos) if e.ground_truth.action == "move")
+    segments = discovery.segmentations_[move_episode]
+    pieces = [(a, b) for pid, a, b in segments if discovery.primitive_kinds_[pid] == "manipulation"]
+    start, end = pieces[0][0], pieces[-1][1]
+    O = demos[move_episode].O
+    phi = np.r_[O[start, :3], O[end - 1, :3]]
+    made = with_actions.synthesize_action(carry, phi, n_frames=end - start)
+    shown = demos[move_episode].H[start:end]
+    hand = discovery.hand_marker
+    # trained on this one carry, the whole action reproduces it: the hand's path within 1 cm
+    assert np.median(np.linalg.norm(made[:, hand] - shown[:, hand], axis=1)) < 0.01
+    assert lifts[carry] > 0.02 and sorted(lifts.values())[-2] < 0.01  # m
+
+
+def test_the_action_level_is_saved_and_loaded(with_actions, tmp_path):
+    with_actions.save(tmp_path / "models")
+    loaded = ActionModels.load(tmp_path / "models")
+    assert sorted(loaded.actions_) == sorted(with_actions.actions_) and loaded.action_lifts_ == with_actions.action_lifts_
+    action = next(a for a, m in loaded.actions_.items() if m.kind == "approach")
+    phi = loaded.actions_[action].centre
+    np.testing.assert_array_equal(loaded.synthesize_action(action, phi), with_actions.synthesize_action(action, phi))
+    manifest = json.loads((tmp_path / "models" / MANIFEST).read_text())
+    manifest["actions"][0]["lift_m"] = "high"
+    (tmp_path / "models" / MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(DataFileError, match="lift_m must be a number"):
+        ActionModels.load(tmp_path / "models")
+
+
+def test_models_without_an_action_level_say_how_to_get_one(small):
+    _, _, models, _ = small
+    assert models.actions_ == {}
+    with pytest.raises(InvalidInputError, match="no action level: fit them with the object poses O"):
+        models.synthesize_action(0, np.zeros(6))
