@@ -62,6 +62,7 @@ from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.actions import action_level
 from hoap_actions.primitives.connected_recognition import ChainedHMM, chain_classes, exit_probability
 from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.discovery_groups import action_groups
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models_directory import (
     FORMAT_VERSION,
@@ -159,12 +160,13 @@ class ActionModels(Estimator):
 
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
     ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
-    (dict id -> :class:`ClassModel` of a whole action) and ``action_lifts_`` (dict id -> the highest
-    lift, m, of the object in its runs), both empty without it.
+    (dict id -> :class:`ClassModel` of a whole action), ``action_lifts_`` (dict id -> the highest
+    lift, m, of the object in its runs) and ``action_of_class_`` (dict class id -> the whole action
+    its pieces belong to), all empty without it.
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
-                "action_lifts_")
+                "action_lifts_", "action_of_class_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
     _readable_versions = (1, FORMAT_VERSION)
@@ -277,14 +279,17 @@ class ActionModels(Estimator):
         self.classes_ = {int(cid): fitted[cid] for cid in sorted(fitted)}
         self.grammar_ = ActionGrammar(0.0).fit([[int(pid) for pid, *_ in seg] for seg in discovery.segmentations_])
         self.discovery_ = discovery
-        self.actions_, self.action_lifts_ = ({}, {}) if O is None else self._fit_actions(inputs, O, lengths)
+        self.actions_, self.action_lifts_, self.action_of_class_ = (
+            ({}, {}, {}) if O is None else self._fit_actions(inputs, O, lengths))
         return self
 
     def _fit_actions(self, inputs: list[np.ndarray], O: np.ndarray, lengths: Sequence[int]
-                     ) -> tuple[dict[int, ClassModel], dict[int, float]]:
+                     ) -> tuple[dict[int, ClassModel], dict[int, float], dict[int, int]]:
         """One model per whole action: approach and remove are their classes already; each pooled
         manipulation action gets a PHMM on its whole runs, phi = the object's start and end."""
         level = action_level(self.discovery_, O, lengths)
+        groups = action_groups(self.discovery_)
+        action_of_class = {cid: level.action_of_group[groups[cid]] for cid in self.classes_}
         objects = np.split(np.asarray(O, dtype=float), np.cumsum(lengths)[:-1])
         actions, lifts = {}, {}
         for action, kind in enumerate(level.kinds):
@@ -298,7 +303,7 @@ class ActionModels(Estimator):
             actions[action] = self._fit_model(action, kind, movements, phis, None)
             lifts[action] = max(float(level.signatures[g][:-1].reshape(-1, 3)[:, 1].max())
                                 for g in {r.group for r in runs})
-        return actions, lifts
+        return actions, lifts, action_of_class
 
     def _fit_class(self, cls, inputs: list[np.ndarray], covars_prior: np.ndarray | None) -> ClassModel:
         movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
@@ -496,7 +501,8 @@ class ActionModels(Estimator):
             "covars_prior": None if self.covars_prior_ is None else self.covars_prior_.tolist(),
             "classes": [
                 {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
-                 "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability}
+                 "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
+                 "action": self.action_of_class_.get(cid)}
                 for cid, m in self.classes_.items()
             ],
             "actions": [
@@ -549,6 +555,12 @@ class ActionModels(Estimator):
             if isinstance(lift, bool) or not isinstance(lift, (int, float)) or not np.isfinite(lift):
                 raise DataFileError(f"{manifest_path}: entry actions[{entry['id']}]: lift_m must be a number (m); got {lift!r}")
             models.action_lifts_[entry["id"]] = float(lift)
+        models.action_of_class_ = {}
+        for entry in (manifest["classes"] if version >= 2 and actions else []):
+            if entry.get("action") not in actions:
+                raise DataFileError(f"{manifest_path}: entry classes[{entry['id']}]: action must be one of the "
+                                    f"actions {sorted(actions)}; got {entry.get('action')!r}")
+            models.action_of_class_[entry["id"]] = entry["action"]
         known = {c.primitive_id for c in models.discovery_.classes_}
         if set(classes) != known or set(models.grammar_.symbols_) - set(classes):
             raise DataFileError(

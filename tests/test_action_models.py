@@ -287,10 +287,21 @@ def test_the_action_level_has_whole_approach_manipulation_and_remove_models(smal
     assert lifts[carry] > 0.02 and sorted(lifts.values())[-2] < 0.01  # m
 
 
+def test_every_class_belongs_to_the_whole_action_of_its_kind(small, with_actions):
+    demos, discovery, _, _ = small
+    assert set(with_actions.action_of_class_) == set(with_actions.classes_)
+    for cid, action in with_actions.action_of_class_.items():
+        assert with_actions.actions_[action].kind == with_actions.classes_[cid].kind
+    for demo, segments in enumerate(discovery.segmentations_):  # the pieces of one run share its action
+        pieces = {with_actions.action_of_class_[pid] for pid, *_ in segments if discovery.primitive_kinds_[pid] == "manipulation"}
+        assert len(pieces) <= 1
+
+
 def test_the_action_level_is_saved_and_loaded(with_actions, tmp_path):
     with_actions.save(tmp_path / "models")
     loaded = ActionModels.load(tmp_path / "models")
     assert sorted(loaded.actions_) == sorted(with_actions.actions_) and loaded.action_lifts_ == with_actions.action_lifts_
+    assert loaded.action_of_class_ == with_actions.action_of_class_
     action = next(a for a, m in loaded.actions_.items() if m.kind == "approach")
     phi = loaded.actions_[action].centre
     np.testing.assert_array_equal(loaded.synthesize_action(action, phi), with_actions.synthesize_action(action, phi))
@@ -303,6 +314,19 @@ def test_the_action_level_is_saved_and_loaded(with_actions, tmp_path):
 
 def test_models_without_an_action_level_say_how_to_get_one(small):
     _, _, models, _ = small
-    assert models.actions_ == {}
+    assert models.actions_ == {} and models.action_of_class_ == {}
     with pytest.raises(InvalidInputError, match="no action level: fit them with the object poses O"):
         models.synthesize_action(0, np.zeros(6))
+
+
+def test_whole_action_errors_score_each_run_by_its_action(small, with_actions):
+    from hoap_actions.primitives.synthesis_eval import whole_action_errors
+
+    demos, _, models, _ = small
+    errors = whole_action_errors(with_actions, demos)  # the training runs themselves
+    assert sum(e["runs"] for e in errors.values()) == 3  # the push, the move and the rotation
+    carry = max(with_actions.action_lifts_, key=with_actions.action_lifts_.get)
+    # on its own training run the carry is followed within 1 cm, closer than the straight line
+    assert errors[carry]["model_m"][0] < 0.01 and errors[carry]["model_m"][0] < errors[carry]["baseline_m"][0]
+    with pytest.raises(InvalidInputError, match="no action level"):
+        whole_action_errors(models, demos)
