@@ -42,6 +42,15 @@ HOME = {
 }
 
 
+def up_z(quats: np.ndarray) -> np.ndarray:
+    """World z of the frames' z axes, for quaternions ``(..., 4)`` (x, y, z, w): 1 - 2 (x^2 + y^2).
+
+    The closed form costs a microsecond where scipy's ``Rotation`` costs ~30 us, and the balance
+    guard reads the soles' tilt at every 240 Hz tick."""
+    q = np.asarray(quats, dtype=float)
+    return 1.0 - 2.0 * (q[..., 0] ** 2 + q[..., 1] ** 2)
+
+
 class Robot:
     """The humanoid as body ``name`` of ``sim``, standing with its ankles' midpoint at ``feet_xy``.
 
@@ -203,16 +212,15 @@ class Robot:
         return xy[ConvexHull(xy).vertices[::-1]]  # scipy lists 2-D hulls counter-clockwise
 
     def sole_tilt(self) -> float:
-        """The larger of the two soles' tilts from level (rad): above ~0 a foot rocks on an edge."""
+        """The larger of the two soles' tilts from level (rad): above ~0 a foot rocks on an edge.
+        Read every control tick, so from the quaternions directly (:func:`up_z`)."""
         _, quats = self.sim.link_poses(self.name, self._soles)
-        up_z = Rotation.from_quat(quats).apply([0.0, 0.0, 1.0])[:, 2]
-        return float(np.arccos(np.clip(up_z.min(), -1.0, 1.0)))
+        return float(np.arccos(np.clip(up_z(quats).min(), -1.0, 1.0)))
 
     def has_fallen(self) -> bool:
         """True once the pelvis is lower than :data:`FALL_HEIGHT` above the floor or tilted past :data:`FALL_TILT`."""
         position, quat = self.base_pose()
-        up = Rotation.from_quat(quat).apply([0.0, 0.0, 1.0])
-        return bool(position[2] - self.floor_z < FALL_HEIGHT or up[2] < np.cos(FALL_TILT))
+        return bool(position[2] - self.floor_z < FALL_HEIGHT or up_z(quat) < np.cos(FALL_TILT))
 
     # ------------------------------------------------------------------ helpers
     def _corners(self, positions: np.ndarray, quats: np.ndarray) -> np.ndarray:

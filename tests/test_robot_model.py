@@ -256,3 +256,13 @@ def test_home_posture_keeps_clear_of_the_table():
         assert home.frame_pose("r_tcp")[0][2] > 0.04
     finally:
         sim.close()
+
+
+def test_up_z_is_the_rotated_z_axis_height():
+    """The closed form against scipy's rotation of the z axis, for random unit quaternions."""
+    from scipy.spatial.transform import Rotation
+
+    from hoap_actions.envs.robot import up_z
+
+    quats = Rotation.random(200, random_state=1).as_quat()
+    np.testing.assert_allclose(up_z(quats), Rotation.from_quat(quats).apply([0.0, 0.0, 1.0])[:, 2], atol=1e-12)
