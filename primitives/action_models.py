@@ -246,6 +246,7 @@ class ActionModels(Estimator):
         phi = the object's (or the hand's, for approach and remove) start and end.
         """
         self._check_params()
+        self._chained = None  # built from the fitted classes on first use
         hands = _split(H, lengths)
         if not hasattr(discovery, "classes_"):
             raise NotFittedError("discovery must be a fitted PrimitiveDiscovery (call its fit first)")
@@ -334,7 +335,7 @@ class ActionModels(Estimator):
         """Marker trajectory ``(T, M, 3)`` (m) of class ``class_id`` for the effect ``phi`` (6,): initial
         and final location. Only the part of phi along the directions the class's demonstrations
         varied in is used; a phi far outside them warns (ExtrapolationWarning)."""
-        return self._synthesize(self._class(class_id), phi, n_frames)
+        return self._synthesize(_lookup(self.classes_, class_id, "class", "classes"), phi, n_frames)
 
     def synthesize_action(self, action_id: int, phi: np.ndarray, n_frames: int | None = None) -> np.ndarray:
         """Marker trajectory ``(T, M, 3)`` (m) of a whole action (``actions_``) for ``phi`` (6,): for
@@ -344,11 +345,7 @@ class ActionModels(Estimator):
         if not self.actions_:
             raise InvalidInputError("these models have no action level: fit them with the object poses O "
                                     "(hoap-actions learn does), or load a models directory of format_version 2")
-        try:
-            model = self.actions_[int(action_id)]
-        except (KeyError, TypeError, ValueError):
-            raise InvalidInputError(f"no action {action_id!r}; actions: {sorted(self.actions_)}") from None
-        return self._synthesize(model, phi, n_frames)
+        return self._synthesize(_lookup(self.actions_, action_id, "action", "actions"), phi, n_frames)
 
     def _synthesize(self, model: ClassModel, phi: np.ndarray, n_frames: int | None) -> np.ndarray:
         phi = _check_phi(phi)
@@ -371,13 +368,6 @@ class ActionModels(Estimator):
             warnings.warn(f"phi is far outside what class {model.class_id}'s demonstrations show ({ranges}): the "
                           "movement is an unchecked extrapolation", ExtrapolationWarning, stacklevel=3)
 
-    def _class(self, class_id: int) -> ClassModel:
-        check_is_fitted(self)
-        try:
-            return self.classes_[int(class_id)]
-        except (KeyError, TypeError, ValueError):
-            raise InvalidInputError(f"no class {class_id!r}; classes: {sorted(self.classes_)}") from None
-
     # ---------------------------------------------------------------------------- recognition
     def features(self, H: np.ndarray) -> np.ndarray:
         """The model input of one movement's markers ``(T, M, 3)`` or ``(T, 3M)``, checked against the models."""
@@ -399,7 +389,7 @@ class ActionModels(Estimator):
 
     def _recognize_features(self, X: np.ndarray) -> SegmentRecognition:
         chained = self.chained()
-        marginal = chained.class_scores(chained.log_emissions(X[:, self.connected_features()]))
+        marginal = chained.class_scores(self.connected_log_emissions(X))
         best = [int(chained.class_ids[i]) for i in np.argsort(-marginal)[: self.n_candidates] if np.isfinite(marginal[i])]
         scores = dict.fromkeys(self.classes_, -np.inf)  # classes not among the candidates: ruled out
         if not best:  # shorter than every chain: no class explains it
@@ -451,8 +441,18 @@ class ActionModels(Estimator):
         with its class's PHMM. A movement no grammatical path explains gives an empty list.
         """
         X = self.features(H)
+        return self.decode_features(X, self.connected_log_emissions(X))
+
+    def connected_log_emissions(self, X: np.ndarray) -> np.ndarray:
+        """Log-density of every frame of the features ``X`` (:meth:`features`) under every state of the
+        chained classes, ``(T, S)``: connected recognition's evidence."""
+        return self.chained().log_emissions(X[:, self.connected_features()])
+
+    def decode_features(self, X: np.ndarray, log_emissions: np.ndarray) -> list[DecodedSegment]:
+        """:meth:`decode` from a movement's features and their :meth:`connected_log_emissions`, for a
+        caller that uses the emissions too (the recognition report's baseline)."""
         chained = self.chained()
-        labels, score = chained.viterbi(chained.log_emissions(X[:, self.connected_features()]))
+        labels, score = chained.viterbi(log_emissions)
         if not np.isfinite(score):
             return []
         decoded = []
@@ -572,6 +572,14 @@ class ActionModels(Estimator):
 
 
 # ------------------------------------------------------------------------------------------ helpers
+def _lookup(models: Mapping[int, ClassModel], model_id: object, what: str, plural: str) -> ClassModel:
+    """``models[model_id]``, or an error listing the ids there are."""
+    try:
+        return models[int(model_id)]
+    except (KeyError, TypeError, ValueError):
+        raise InvalidInputError(f"no {what} {model_id!r}; {plural}: {sorted(models)}") from None
+
+
 def _entries(manifest_path: Path, manifest: dict, key: str) -> list[dict]:
     """The manifest's list ``key`` of models, each an object with an int id and its file ``<prefix>_<id>.npz``."""
     prefix = {"classes": "class", "actions": "action"}[key]

@@ -84,7 +84,9 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
     episode, truth = job
     models: ActionModels = _WORKER["models"]
     started = time.perf_counter()
-    decoded = models.decode(episode.H)
+    X = models.features(episode.H)
+    log_emissions = models.connected_log_emissions(X)  # the decoder's evidence, and the baseline's
+    decoded = models.decode_features(X, log_emissions)
     decode_s = time.perf_counter() - started
     predicted = np.full(episode.T, -2)
     for segment in decoded:
@@ -98,7 +100,7 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
             overlap = min(b, segment.end) - max(a, segment.start)
             if c == segment.class_id and overlap > 0.5 * max(b - a, segment.end - segment.start):
                 errors.append(_phi_error(segment.phi, _true_phi(episode, c, a, b, models)))
-    baseline = _frame_by_frame(models, episode)
+    baseline = models.chained().class_ids[models.chained().state_class[log_emissions.argmax(axis=1)]]
     oracle_right, oracle_errors = 0, []
     if _WORKER["oracle"] and true_runs:
         recognised = models.decode_segments([episode.H[a:b] for _, a, b in true_runs])
@@ -119,13 +121,6 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
         baseline_frames_right=int(np.sum(baseline[known] == truth[known])),
         baseline_edit=edit_score([v for v, *_ in runs(baseline)], [c for c, *_ in true_runs]),
     )
-
-
-def _frame_by_frame(models: ActionModels, episode: Episode) -> np.ndarray:
-    """The baseline: each frame's class is that of its most likely state, no chain, no grammar."""
-    chained = models.chained()
-    logb = chained.log_emissions(models.features(episode.H)[:, models.connected_features()])
-    return chained.class_ids[chained.state_class[logb.argmax(axis=1)]]
 
 
 def _true_phi(episode: Episode, class_id: int, start: int, end: int, models: ActionModels) -> np.ndarray:

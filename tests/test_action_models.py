@@ -330,3 +330,14 @@ def test_whole_action_errors_score_each_run_by_its_action(small, with_actions):
     assert errors[carry]["model_m"][0] < 0.01 and errors[carry]["model_m"][0] < errors[carry]["baseline_m"][0]
     with pytest.raises(InvalidInputError, match="no action level"):
         whole_action_errors(models, demos)
+
+
+def test_a_refit_does_not_keep_the_previous_fits_chained_hmm(small):
+    demos, discovery, _, _ = small
+    lengths = [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    models = ActionModels(max_states=5).fit(H, lengths, discovery, demos.fps)
+    first = models.chained()
+    assert models.chained() is first  # built once per fit
+    models.fit(H, lengths, discovery, demos.fps)
+    assert models.chained() is not first
