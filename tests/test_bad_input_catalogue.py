@@ -327,6 +327,7 @@ def test_row12_demo_refuses_fewer_than_one_episode(episodes, no_long_work, capsy
     [
         (["record", "--preset", "small", "--out", "x.h5", "--seed", "-1"], "a seed is an integer in 0.."),
         (["demo", "--seed", "-1"], "a seed is an integer in 0.."),
+        (["demo", "--seed", "9223372036854775807", "--episodes", "2"], "seeds 9223372036854775807..9223372036854775808 outside"),
         (["demo", "--env", "bogus/Env-v0"], "invalid choice: 'bogus/Env-v0' (choose from 'hoap_actions/PegInsert-v0'"),
         (["demo", "--env", "CartPole-v1"], "invalid choice: 'CartPole-v1'"),
     ],
