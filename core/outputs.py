@@ -45,6 +45,8 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
     """``path`` as a :class:`Path` once it names a file that may be written: not empty, not a folder."""
     if not str(path).strip():
         raise InvalidInputError(f"the {what} path is empty; give a file name such as out/{what}.ext")
+    if "\0" in str(path):
+        raise InvalidInputError(f"the {what} path {str(path)!r} holds a NUL character, which no file name may hold")
     path = Path(path)
     if path.is_dir():
         raise InvalidInputError(f"the {what} path {path} is a directory; give a file name inside it")

@@ -82,3 +82,9 @@ def test_claimed_directory_needs_a_folder_path(tmp_path, path):
     with pytest.raises(InvalidInputError):
         with claimed_directory(tmp_path / path if path else path):
             raise AssertionError("the job must not start")
+
+
+def test_a_path_with_a_nul_character_is_refused(tmp_path):
+    with pytest.raises(InvalidInputError, match="NUL character"):
+        with claimed_file(str(tmp_path / "a\0b.json")):
+            raise AssertionError("the job must not start")
