@@ -41,13 +41,19 @@ PARTIAL_MARK = ".hoap-partial"
 __all__ = ["PARTIAL_MARK", "check_output_path", "claimed_directory", "claimed_file", "claimed_files"]
 
 
-def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
-    """``path`` as a :class:`Path` once it names a file that may be written: not empty, not a folder."""
+def _path_text(path: str | os.PathLike, what: str, example: str) -> Path:
+    """``path`` as a :class:`Path` once it is a name at all: not empty, no NUL (which ``os`` refuses
+    with a bare ValueError)."""
     if not str(path).strip():
-        raise InvalidInputError(f"the {what} path is empty; give a file name such as out/{what}.ext")
+        raise InvalidInputError(f"the {what} path is empty; give one such as {example}")
     if "\0" in str(path):
         raise InvalidInputError(f"the {what} path {str(path)!r} holds a NUL character, which no file name may hold")
-    path = Path(path)
+    return Path(path)
+
+
+def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
+    """``path`` as a :class:`Path` once it names a file that may be written: not empty, not a folder."""
+    path = _path_text(path, what, f"out/{what}.ext")
     if path.is_dir():
         raise InvalidInputError(f"the {what} path {path} is a directory; give a file name inside it")
     if path.name in ("", ".", ".."):
@@ -217,9 +223,7 @@ def claimed_files(
 
     The same checks as :func:`claimed_file`; a folder this call created is removed again if the job fails.
     """
-    if not str(folder).strip():
-        raise InvalidInputError(f"the {what} folder path is empty; give a folder such as out/{what}")
-    folder = Path(folder)
+    folder = _path_text(folder, what, f"out/{what.replace(' ', '-')}")
     if folder.exists() and not folder.is_dir():
         raise InvalidInputError(f"{folder} exists and is not a directory; the {what} need a folder")
     created = not folder.exists()
@@ -261,9 +265,7 @@ def claimed_directory(path: str | os.PathLike, overwrite: bool = False, what: st
     The same checks as :func:`claimed_file`; without ``overwrite`` an existing ``path`` is refused, with
     it the old directory is removed only once the new one is in place.
     """
-    if not str(path).strip():
-        raise InvalidInputError(f"the {what} path is empty; give a folder such as out/{what.replace(' ', '-')}")
-    path = Path(path)
+    path = _path_text(path, what, f"out/{what.replace(' ', '-')}")
     if path.exists() and not path.is_dir():
         raise InvalidInputError(f"{path} exists and is not a directory; the {what} need a folder of their own")
     if path.name in ("", ".", ".."):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from hoap_actions.errors import DataExistsError, InvalidInputError
-from hoap_actions.outputs import PARTIAL_MARK, claimed_directory, claimed_file
+from hoap_actions.outputs import PARTIAL_MARK, claimed_directory, claimed_file, claimed_files
 
 
 def test_claimed_file_publishes_on_success_and_keeps_the_suffix_for_format_sniffing(tmp_path):
@@ -84,7 +84,8 @@ def test_claimed_directory_needs_a_folder_path(tmp_path, path):
             raise AssertionError("the job must not start")
 
 
-def test_a_path_with_a_nul_character_is_refused(tmp_path):
+@pytest.mark.parametrize("claim", [claimed_file, claimed_directory, lambda p: claimed_files(p, ["a.txt"])])
+def test_a_path_with_a_nul_character_is_refused(tmp_path, claim):
     with pytest.raises(InvalidInputError, match="NUL character"):
-        with claimed_file(str(tmp_path / "a\0b.json")):
+        with claim(str(tmp_path / "a\0b")):
             raise AssertionError("the job must not start")
