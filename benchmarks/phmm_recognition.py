@@ -1,6 +1,6 @@
 """Recognition of discovered primitives on held-out recordings, from the arm markers alone and with the cuts given.
 
-Protocol: action models are learned (:func:`hoap_actions.primitives.learning.learn_to_dir`: discovery
+Protocol: action models are learned (:func:`hoap_actions.primitives.learning.learn`: discovery
 on the training recordings' object trajectories, one PHMM per class on the arm markers) from the
 ``paper`` recordings with ``--train-seeds``, then every held-out recording (``--test-seeds``, never
 used to choose a setting) is recognised with
@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -45,17 +44,15 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     from hoap_actions.primitives.action_models import ActionModels
     from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.learning import learn_to_dir
+    from hoap_actions.primitives.learning import learn
     from hoap_actions.primitives.recognition_eval import recognize_recording
 
     train = [ensure_recording("paper", seed, args.data) for seed in args.train_seeds]
     tests = [ensure_recording("paper", seed, args.data) for seed in args.test_seeds]
     learned = None
     if args.models is None:
-        with tempfile.TemporaryDirectory() as scratch:
-            learned = learn_to_dir(train, Path(scratch) / "models", progress=True)
-            print(f"learned {learned.report()}")
-            models = ActionModels.load(Path(scratch) / "models")
+        models, learned = learn(train, progress=True)
+        print(f"learned {learned.report()}")
     else:
         models = ActionModels.load(args.models)
     per_recording = {}
