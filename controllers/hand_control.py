@@ -30,7 +30,9 @@ the energy of each swing, measured).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -39,10 +41,25 @@ from scipy.spatial.transform import Rotation
 
 from hoap_actions.controllers.retiming import StreamingRetimer
 from hoap_actions.controllers.wholebody_ik import PELVIS, IKResult, IKStatus, WholeBodyIK
-from hoap_actions.envs.robot import Robot
-from hoap_actions.envs.sim import TIMESTEP
 
-__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "rest_posture"]
+__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "StandingRobot", "rest_posture"]
+
+
+class StandingRobot(Protocol):
+    """What the hand controller needs of a robot (``hoap_actions.envs.robot.Robot`` is one): its
+    joints, measured state and servo targets. A protocol, so that this control layer does not
+    import the simulated world that uses it."""
+
+    joint_names: Sequence[str]
+    home_posture: Sequence[float]
+    targets: np.ndarray
+
+    def joint_index(self, name: str) -> int: ...
+    def joint_positions(self) -> np.ndarray: ...
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]: ...
+    def frame_pose(self, frame: str) -> tuple[np.ndarray, np.ndarray]: ...
+    def sole_tilt(self) -> float: ...
+    def set_targets(self, q: ArrayLike) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -71,7 +88,7 @@ BALANCE_HOLD = 0.3  # s the hand keeps yielding after the soles are level again 
 BALANCE_BODY_SPEED = 0.02  # rad/s, IK speed limit of the legs and waist while the hand yields
 
 
-def rest_posture(robot: Robot) -> np.ndarray:
+def rest_posture(robot: StandingRobot) -> np.ndarray:
     """The home posture with the left arm raised and folded (no squat or lean lowers it onto the table)
     and the right forearm tilted up 20 deg (home's level forearm, 4.2 cm over the table at its
     lowest, sweeps through 5 cm pegs)."""
@@ -85,19 +102,19 @@ class HandController:
     """Moves the right hand of ``robot`` to a desired world position with the whole body standing.
 
     Args:
-        robot: the robot to command (its :meth:`~Robot.set_targets` gets the whole posture).
+        robot: the robot to command (its ``set_targets`` gets the whole posture).
+        dt: tick period (s): one call of :meth:`tick` per physics step.
         ik: the whole-body IK (default: one built on the robot's joints and :func:`rest_posture`).
         limits: Cartesian velocity / acceleration / jerk limits of the hand reference.
-        dt: tick period (s): one call of :meth:`tick` per physics step.
         integral_gain: gain (1/s) of the measured-error correction; 0 turns it off.
     """
 
     def __init__(
         self,
-        robot: Robot,
+        robot: StandingRobot,
+        dt: float,
         ik: WholeBodyIK | None = None,
         limits: HandLimits = HAND_LIMITS,
-        dt: float = TIMESTEP,
         integral_gain: float = INTEGRAL_GAIN,
     ) -> None:
         self.robot = robot

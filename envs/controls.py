@@ -8,6 +8,7 @@ from gymnasium import spaces
 from hoap_actions.controllers.hand_control import HandController, rest_posture
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
+from hoap_actions.envs.sim import TIMESTEP
 
 MAX_JOINT_DELTA = 0.05  # rad per action (30 Hz): 1.5 rad/s at full command, under the 5 rad/s servo limit
 JOINT_DELTA_JOINTS = (
@@ -83,7 +84,7 @@ class EEDeltaController:
 
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
-        self.hand = HandController(robot)
+        self.hand = HandController(robot, TIMESTEP)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.last_clipped = False
         self.desired = np.zeros(3)

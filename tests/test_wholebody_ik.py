@@ -14,7 +14,7 @@ from hoap_actions.controllers.wholebody_ik import BODY, BODY_SPEED, IKStatus, Wh
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
-from hoap_actions.envs.sim import Sim
+from hoap_actions.envs.sim import TIMESTEP, Sim
 from hoap_actions.errors import InvalidInputError
 
 TICKS = 480  # 2 s at 240 Hz: a move of up to 0.2 m at 0.15 m/s, then settling
@@ -31,7 +31,7 @@ def standing():
         sim.set_base_pose(name, (0.5, -0.5 + 0.05 * i, 0.025))
     sim.step(48)
     state = sim.save_state()
-    hand = HandController(robot)
+    hand = HandController(robot, TIMESTEP)
     yield sim, robot, hand, state
     sim.close()
 
