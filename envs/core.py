@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import inspect
 import logging
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import gymnasium
@@ -19,7 +19,7 @@ from gymnasium import spaces
 from hoap_actions.envs.controls import CONTROL_MODES, make_controller
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
-from hoap_actions.envs.sim import Sim, check_image_size
+from hoap_actions.envs.sim import Camera, Sim, check_image_size
 from hoap_actions.envs.tasks.base import Task
 from hoap_actions.errors import EnvClosedError, InvalidInputError
 
@@ -27,6 +27,28 @@ logger = logging.getLogger(__name__)
 
 PHYSICS_STEPS_PER_ACTION = 8  # 240 Hz physics, 30 Hz actions
 SETTLE_STEPS = 24  # physics steps after placing a layout, so objects rest before the first observation
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """What a camera delivers to a policy: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres along the
+    view axis, and the ``camera`` (pose and intrinsics) that took them; never the simulator's
+    segmentation, which is ground truth."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    camera: Camera
+
+
+@dataclass(frozen=True)
+class HandStatus:
+    """The ee_delta hand controller's state, as a robot's controller would report it: the smoothed
+    hand ``reference`` (3, m) the IK tracks, whether the IK has ``unreachable`` its target for a
+    while, and whether the hand is ``yielding`` to balance."""
+
+    reference: np.ndarray
+    unreachable: bool
+    yielding: bool
 
 
 class HoapEnv(gymnasium.Env):
@@ -140,6 +162,48 @@ class HoapEnv(gymnasium.Env):
 
     def close(self) -> None:
         self.sim.close()
+
+    # ------------------------------------------------------------------ what a policy may ask the robot
+    def parse_observation(self, obs: dict[str, np.ndarray]) -> dict[str, Any]:
+        """Named fields of an observation of this env, so no policy slices it by offset: the robot's
+        ``joint_positions``, ``joint_velocities``, ``base_position``, ``base_quaternion``,
+        ``tcp_position``, the task's own fields (see the task's ``parse_observation``) and the two
+        goal vectors. Arrays are float64 copies."""
+        try:
+            vector = np.asarray(obs["observation"], dtype=float)
+            goals = {key: np.asarray(obs[key], dtype=float).copy() for key in ("achieved_goal", "desired_goal")}
+        except (KeyError, TypeError, ValueError):
+            raise InvalidInputError("obs must be an observation dict of this env (keys 'observation', "
+                                    "'achieved_goal', 'desired_goal')") from None
+        expected = self.observation_space["observation"].shape
+        if vector.shape != expected:
+            raise InvalidInputError(f"obs['observation'] has shape {vector.shape}; this env's is {expected}")
+        n = len(self.robot.joint_names)
+        sizes = {"joint_positions": n, "joint_velocities": n, "base_position": 3, "base_quaternion": 4, "tcp_position": 3}
+        fields: dict[str, Any] = {}
+        offset = 0
+        for name, size in sizes.items():
+            fields[name] = vector[offset: offset + size].copy()
+            offset += size
+        return fields | self.task.parse_observation(vector[offset:]) | goals
+
+    def capture(self, camera: str = "overhead", width: int = 320, height: int = 240) -> CameraView:
+        """An rgb-d image from one of the scene's cameras (``sim.cameras``), as a robot's camera would
+        give it: a policy that perceives the world calls this instead of reading the simulator."""
+        if camera not in self.sim.cameras:
+            raise InvalidInputError(f"camera={camera!r} is not a camera of this scene; accepted: {sorted(self.sim.cameras)}")
+        check_image_size(width, height, what="capture")
+        view = replace(self.sim.cameras[camera], width=width, height=height)
+        image = self.sim.render(view)
+        return CameraView(rgb=image.rgb, depth=image.depth, camera=view)
+
+    @property
+    def hand_status(self) -> HandStatus:
+        """The hand controller's state (``control_mode="ee_delta"`` only)."""
+        hand = getattr(self.controller, "hand", None)
+        if hand is None:
+            raise InvalidInputError(f"hand_status needs control_mode='ee_delta'; this env uses {self.control_mode!r}")
+        return HandStatus(reference=hand.reference.copy(), unreachable=hand.unreachable, yielding=hand.yielding)
 
     # --------------------------------------------------------------------- internals
     @classmethod

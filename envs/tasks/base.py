@@ -26,6 +26,10 @@ class Task(ABC):
         """The task's part of the observation vector (documented by each task)."""
 
     @abstractmethod
+    def parse_observation(self, part: np.ndarray) -> dict[str, np.ndarray | int]:
+        """Named fields of the task's part of the observation vector."""
+
+    @abstractmethod
     def achieved_goal(self) -> np.ndarray: ...
 
     @abstractmethod

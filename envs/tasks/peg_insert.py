@@ -48,6 +48,20 @@ class PegInsertTask(Task):
         target_hole = np.eye(scene_module.N_HOLES)[self.hole]
         return np.concatenate([*poses, self.scene.hole_positions().ravel(), target_peg, target_hole])
 
+    def parse_observation(self, part: np.ndarray) -> dict[str, np.ndarray | int]:
+        """``peg_positions`` (n_pegs, 3), ``peg_quaternions`` (n_pegs, 4), ``hole_positions``
+        (N_HOLES, 3), and the indices ``target_peg`` and ``target_hole`` of the one-hots."""
+        n, k = self.scene.n_pegs, 7 * self.scene.n_pegs
+        poses = part[:k].reshape(n, 7)
+        holes_end = k + 3 * scene_module.N_HOLES
+        return {
+            "peg_positions": poses[:, :3].copy(),
+            "peg_quaternions": poses[:, 3:].copy(),
+            "hole_positions": part[k:holes_end].reshape(scene_module.N_HOLES, 3).copy(),
+            "target_peg": int(np.argmax(part[holes_end: holes_end + n])),
+            "target_hole": int(np.argmax(part[holes_end + n:])),
+        }
+
     def achieved_goal(self) -> np.ndarray:
         centre, quat = self.scene.peg_pose(self.peg)
         qx, qy, qz, qw = quat

@@ -27,6 +27,10 @@ class ReachTask(Task):
     def observation(self) -> np.ndarray:
         return self._target.copy()
 
+    def parse_observation(self, part: np.ndarray) -> dict[str, np.ndarray | int]:
+        """``target`` (3, m)."""
+        return {"target": part.copy()}
+
     def achieved_goal(self) -> np.ndarray:
         return self.robot.frame_pose("r_tcp")[0]
 
