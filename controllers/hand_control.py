@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.controllers.retiming import StreamingRetimer
 from hoap_actions.controllers.wholebody_ik import PELVIS, IKResult, IKStatus, WholeBodyIK
 
-__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "StandingRobot", "rest_posture"]
+__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "RobotDescription", "StandingRobot", "rest_posture"]
 
 
 class StandingRobot(Protocol):
@@ -88,14 +88,24 @@ BALANCE_HOLD = 0.3  # s the hand keeps yielding after the soles are level again 
 BALANCE_BODY_SPEED = 0.02  # rad/s, IK speed limit of the legs and waist while the hand yields
 
 
-def rest_posture(robot: StandingRobot) -> np.ndarray:
+def rest_posture(robot: StandingRobot | RobotDescription) -> np.ndarray:
     """The home posture with the left arm raised and folded (no squat or lean lowers it onto the table)
     and the right forearm tilted up 20 deg (home's level forearm, 4.2 cm over the table at its
     lowest, sweeps through 5 cm pegs)."""
     q = np.array(robot.home_posture, dtype=float)
+    names = list(robot.joint_names)
     for name, value in REST.items():
-        q[robot.joint_index(name)] = value
+        q[names.index(name)] = value
     return q
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A robot's joints (names, in the order of its joint vectors) and home posture (rad): what a
+    policy needs to build its own kinematic model of it."""
+
+    joint_names: tuple[str, ...]
+    home_posture: tuple[float, ...]
 
 
 class HandController:

@@ -326,6 +326,25 @@ class WholeBodyIK:
         """The IK model's centre of mass (3,) in the world (m)."""
         return self.robot.com_world()
 
+    def hand_pose_at(self, q: ArrayLike, base_position: ArrayLike, base_quaternion: ArrayLike) -> np.ndarray:
+        """Forward kinematics: the hand (tcp) frame (4, 4) in the world for joints ``q`` (n,) and the
+        pelvis pose; the IK's own state is left as it was (a pure query)."""
+        robot = self.robot
+        saved_q, saved_base = robot.state.q.copy(), robot.get_T_world_fbase().copy()
+        state_q = saved_q.copy()
+        state_q[self._q_index] = np.asarray(q, dtype=float)
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_quat(np.asarray(base_quaternion, dtype=float)).as_matrix()
+        T[:3, 3] = np.asarray(base_position, dtype=float)
+        robot.state.q = state_q
+        robot.set_T_world_fbase(T)
+        robot.update_kinematics()
+        hand = robot.get_T_world_frame(HAND).copy()
+        robot.state.q = saved_q
+        robot.set_T_world_fbase(saved_base)
+        robot.update_kinematics()
+        return hand
+
     def probe(self, hand_target: ArrayLike, iterations: int = 200, step: float = 1e-3) -> Probe:
         """Where the hand ends up when its target moves in a straight line to ``hand_target`` by
         ``step`` (m) per solve, followed by up to ``iterations`` solves on it. The IK state is

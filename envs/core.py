@@ -16,6 +16,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from hoap_actions.controllers.hand_control import RobotDescription
 from hoap_actions.envs.controls import CONTROL_MODES, make_controller
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
@@ -196,6 +197,11 @@ class HoapEnv(gymnasium.Env):
         view = replace(self.sim.cameras[camera], width=width, height=height)
         image = self.sim.render(view)
         return CameraView(rgb=image.rgb, depth=image.depth, camera=view)
+
+    @property
+    def robot_description(self) -> RobotDescription:
+        """The robot's joint names (the order of the observation's joint vectors) and home posture."""
+        return RobotDescription(tuple(self.robot.joint_names), tuple(float(v) for v in self.robot.home_posture))
 
     @property
     def hand_status(self) -> HandStatus:
