@@ -165,10 +165,23 @@ class GraspAndInsert(ABC):
         """Plan what the paths need once the grasp is planned; a failure reason stops the episode."""
         return None
 
-    def move_end(self, hold: np.ndarray) -> np.ndarray:
-        """Where the move leaves the tcp for a peg held ``hold`` (3,) below it: the peg's bottom 8 mm
-        into the hole. Policies that line the peg up first override it."""
-        return np.array([*(self.world.hole[:2] + hold[:2]), scene_module.BOARD_SIZE[2] - INSERT_DEPTH + hold[2]])
+    def move_bottom_target(self) -> np.ndarray:
+        """Where the move leaves the held peg's bottom (3,): 8 mm into the hole. Policies that line
+        the peg up first override it."""
+        return np.array([*self.world.hole[:2], scene_module.BOARD_SIZE[2] - INSERT_DEPTH])
+
+    def move_end(self) -> np.ndarray:
+        """The tcp point (3,) that puts the held peg's bottom at :meth:`move_bottom_target`. The peg
+        turns with the hand, and the hand is not held level everywhere (the IK lets it tilt a few
+        degrees where a level forearm cannot reach: 5 mm at a held peg's bottom), so the hand's
+        orientation there is asked of the IK model (twice: the tcp moves with the answer)."""
+        bottom = self.move_bottom_target()
+        f = self.fields
+        self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
+        tcp = bottom - self._grip_rotation @ self.peg_in_hand
+        for _ in range(2):
+            tcp = bottom - self.ik.probe(tcp).rotation @ self.peg_in_hand
+        return tcp
 
     def insert_legs(self, start: np.ndarray, end: np.ndarray) -> list[Leg]:
         """After the move (and any alignment): into the hole (none: the move ends in it)."""
@@ -193,8 +206,8 @@ class GraspAndInsert(ABC):
         self.grip = PRE_CLOSURE
         self.corrections = 0
         self.blocked_steps = 0
-        self.hold = None
-        self.legs: list[Leg] = []
+        self.peg_in_hand = None
+        self._enter(Phase.DONE)
         self.ik.reset(fields["joint_positions"], fields["base_position"], fields["base_quaternion"])
         self.world = self.locate(obs, fields)
         if self.world is None:
@@ -258,11 +271,19 @@ class GraspAndInsert(ABC):
             self.point, self.steps_in_leg = 0, 0
         return not self.legs
 
-    def hand_axes_now(self) -> tuple[np.ndarray, np.ndarray]:
-        """The hand's horizontal axes from the observed joints (forward kinematics)."""
+    def hand_rotation_now(self) -> np.ndarray:
+        """The hand's rotation (3, 3) from the observed joints (forward kinematics)."""
         f = self.fields
-        T = self.ik.hand_pose_at(f["joint_positions"], f["base_position"], f["base_quaternion"])
-        return hand_axes(T[:3, :3])
+        return self.ik.hand_pose_at(f["joint_positions"], f["base_position"], f["base_quaternion"])[:3, :3]
+
+    def hand_axes_now(self) -> tuple[np.ndarray, np.ndarray]:
+        """The hand's horizontal axes from the observed joints."""
+        return hand_axes(self.hand_rotation_now())
+
+    def _hold(self, bottom: np.ndarray) -> None:
+        """Remember where the held peg's bottom (3,) sits in the hand's frame."""
+        self._grip_rotation = self.hand_rotation_now()
+        self.peg_in_hand = self._grip_rotation.T @ (bottom - self.tcp)
 
     # ------------------------------------------------------------------ the sequence
     def _update(self, speed: float, peg: tuple[np.ndarray, bool] | None) -> None:
@@ -301,7 +322,7 @@ class GraspAndInsert(ABC):
         elif phase == Phase.CLOSE:
             if self.steps_in_leg >= CLOSE_STEPS:
                 self.grasp_tcp = self.tcp.copy()
-                self.hold = self.tcp - (self.world.peg - [0.0, 0.0, scene_module.PEG_LENGTH / 2])
+                self._hold(self.world.peg - [0.0, 0.0, scene_module.PEG_LENGTH / 2])
                 self._enter(Phase.LIFT, self.lift_legs(self.tcp.copy()))
         elif phase == Phase.LIFT:
             if self._leg_done(speed):
@@ -309,8 +330,8 @@ class GraspAndInsert(ABC):
                     if peg[0][2] < MIN_LIFT and self.lift_legs(self.grasp_tcp):
                         self.failure = "grasp slipped"
                         return
-                    self.hold = self.tcp - peg[0]
-                end = self.move_end(self.hold)
+                    self._hold(peg[0])
+                end = self.move_end()
                 self.move_target = end
                 self._enter(Phase.MOVE, self.move_legs(self.tcp.copy(), end))
         elif phase == Phase.MOVE:
@@ -356,5 +377,5 @@ class GraspAndInsert(ABC):
             self._enter(Phase.RELEASE)
 
     def _check_slip(self, peg: tuple[np.ndarray, bool] | None) -> None:
-        if peg is not None and np.linalg.norm(self.tcp - peg[0] - self.hold) > SLIP_DISTANCE:
+        if peg is not None and np.linalg.norm(self.tcp + self.hand_rotation_now() @ self.peg_in_hand - peg[0]) > SLIP_DISTANCE:
             self.failure = "grasp slipped"

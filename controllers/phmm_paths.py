@@ -8,15 +8,20 @@ start and end the robot needs:
   manipulation action that lifts the object highest (:attr:`ActionModels.action_lifts_`): the one
   that carries rather than pushes. All three come out of the unsupervised pipeline.
 - **Effect parameters** (human scene, m). Approach: the wrist's start (the models never saw it vary,
-  the arm always starts from rest) and its end; the end is chosen so that the synthesised pinch
-  point lands on the grasp point (one fixed-point step: synthesise, measure where the pinch point
-  ends relative to the wrist, move the wrist target by the difference). Move: the object's start
+  the arm always starts from rest) and its end, the grasp point. Move: the object's start
   and end. Remove: the wrist's start, where the move left it, and its end at rest.
 - **Hand point.** The robot's tcp is the point between its palm and thumb where a peg is held; its
-  human counterpart is the pinch point midway between the index tip and the thumb tip. The hand's
-  orientation is not transferred: the robot's whole-body IK keeps its tcp's z (the held peg's axis)
-  vertical and chooses the heading (the human hand turns to a block's faces, the robot's hand holds
-  a round peg from whatever side its arm reaches).
+  human counterpart is taken to be the wrist marker, the marker on which the approach's and the
+  remove's effects are defined, so the one whose path the models learned best: the fingers' and
+  knuckle's places around it depend on which of the block's faces the hand took, which the pooled
+  models average (at the end of a synthesised approach the wrist holds still within 3 mm while the
+  knuckle swings by 6 cm, measured). Its offset from the pinch is absorbed by the rescaling onto the
+  endpoints. The hand's orientation is not transferred: the robot's whole-body IK keeps its tcp's
+  z (the held peg's axis) vertical and chooses the heading (the human hand turns to a block's faces,
+  the robot's hand holds a round peg from whatever side its arm reaches).
+- **Over the table only.** The demonstrator's arm starts and ends hanging beside the chair, below
+  the table top; a robot's hand rests above it. An approach is taken from where the hand point
+  first rises over the table's height, a remove up to where it last sinks under it.
 - **Scene map** (:class:`SceneMap`): one scale and one offset per axis,
   ``p_robot = scale * p_human + offset``. Across the table, the map of
   :func:`~hoap_actions.envs.world.human_to_robot` (the active region's width onto the work area's).
@@ -27,7 +32,10 @@ start and end the robot needs:
 - **Rescaling onto the endpoints** (:func:`warp`). The synthesised path ends within a centimetre or
   two of the desired ones (a PHMM's state means follow phi only linearly); the robot needs them to
   a millimetre. The start error is faded out and the end error faded in along the normalised arc
-  length, so the shape is kept and the ends are exact.
+  length with a quintic blend whose slope is zero at both ends, so the shape is kept, the ends are
+  exact, and the path leaves and reaches them in its own directions (a carry's lift straight up, an
+  approach's last descent straight down: a linear blend tilted them, and a peg whose bottom was
+  dragged sideways over the table while the lift began tilted in the hand by 9 degrees, measured).
 - **Smoothing.** Linearly interpolated state means have corners where the path turns; a Gaussian
   filter (:data:`SMOOTHING_S`) rounds them before the path is retimed under the hand's velocity,
   acceleration and jerk limits (:func:`~hoap_actions.controllers.retiming.retime_path`).
@@ -49,12 +57,13 @@ from hoap_actions.errors import ExtrapolationWarning, InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.discovery import APPROACH, MANIPULATION, REMOVE
 
-__all__ = ["CARRY_CLEARANCE", "PHMMPaths", "SceneMap", "pinch_point", "warp"]
+__all__ = ["CARRY_CLEARANCE", "PHMMPaths", "SceneMap", "carry_action", "warp"]
 
 CARRY_CLEARANCE = 0.01  # m, how far the learned carry's lift takes a held peg's bottom over the board's top
 SMOOTHING_S = 0.05  # s, standard deviation of the Gaussian that rounds the interpolated state means
+RESAMPLE_SPACING = 0.005  # m of arc length between the points a path is retimed through (0.7 mm corner cutting, measured)
 DEMONSTRATION_FPS = 100.0  # Hz, the recordings' frame rate (the PHMM's time step)
-PINCH_MARKERS = ("index_tip", "thumb_tip")
+HAND_MARKER = "wrist"
 
 
 @dataclass(frozen=True)
@@ -65,9 +74,9 @@ class SceneMap:
     offset: np.ndarray  # (3,)
 
     @classmethod
-    def for_models(cls, models: ActionModels, grasp_height: float) -> SceneMap:
+    def for_models(cls, models: ActionModels) -> SceneMap:
         """Across the table the world's map; vertically the carry's learned lift onto the lift that
-        takes a peg held ``grasp_height`` (m, tcp over its bottom) over the board."""
+        takes a held peg's bottom :data:`CARRY_CLEARANCE` over the board."""
         lift = models.action_lifts_[carry_action(models)]
         needed = scene_module.BOARD_SIZE[2] + CARRY_CLEARANCE
         if lift <= 0:
@@ -97,17 +106,24 @@ def _action_of_kind(models: ActionModels, kind: str) -> int:
     return found[0]
 
 
-def pinch_point(markers: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """The point midway between the index tip and the thumb tip, (T, 3) from markers (T, M, 3)."""
-    return markers[:, [names.index(n) for n in PINCH_MARKERS]].mean(axis=1)
+def over_the_table(path: np.ndarray, first: bool) -> np.ndarray:
+    """The part of ``path`` (T, 3) after it first rises over the table's height (``first``), or before
+    it last sinks under it; the whole path if it never crosses."""
+    above = path[:, 2] > 0.0
+    if above.all() or not above.any():
+        return path
+    if first:
+        return path[int(np.argmax(above)):]
+    return path[: len(path) - int(np.argmax(above[::-1]))]
 
 
 def warp(path: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
     """``path`` (T, 3) moved onto ``start`` and ``end``: the start error fades out and the end error
-    fades in along the normalised arc length."""
+    fades in along the normalised arc length ``u`` with the blend ``10 u^3 - 15 u^4 + 6 u^5``."""
     path = np.asarray(path, float)
     travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
-    w = travelled / travelled[-1] if travelled[-1] > 0 else np.linspace(0.0, 1.0, len(path))
+    u = travelled / travelled[-1] if travelled[-1] > 0 else np.linspace(0.0, 1.0, len(path))
+    w = u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
     return path + (1.0 - w)[:, None] * (np.asarray(start) - path[0]) + w[:, None] * (np.asarray(end) - path[-1])
 
 
@@ -116,22 +132,21 @@ class PHMMPaths:
 
     Args:
         models: fitted :class:`ActionModels` with an action level.
-        grasp_height: tcp height over a held peg's bottom (m), for the vertical map.
         limits: the hand's Cartesian limits the paths are retimed under.
         dt: the period the retimed paths are sampled at (s): one point per env step.
     """
 
-    def __init__(self, models: ActionModels, grasp_height: float, limits: HandLimits = HAND_LIMITS,
+    def __init__(self, models: ActionModels, limits: HandLimits = HAND_LIMITS,
                  dt: float = 1.0 / 30.0) -> None:
         if not models.actions_:
             raise InvalidInputError("the PHMM paths need models with an action level (hoap-actions learn makes them)")
         self.models = models
-        self.map = SceneMap.for_models(models, grasp_height)
+        self.map = SceneMap.for_models(models)
         self.limits, self.dt = limits, float(dt)
         self.approach_id = _action_of_kind(models, APPROACH)
         self.remove_id = _action_of_kind(models, REMOVE)
         self.move_id = carry_action(models)
-        self._wrist = models.marker_names_.index("wrist")
+        self._hand = models.marker_names_.index(HAND_MARKER)
         self._rest = self._training_mean(self.approach_id)[:3]  # where the demonstrator's wrist starts
 
     def _training_mean(self, action: int) -> np.ndarray:
@@ -143,20 +158,19 @@ class PHMMPaths:
             warnings.simplefilter("ignore", ExtrapolationWarning)
             return self.models.synthesize_action(action, phi)
 
-    def _robot_path(self, markers: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
-        """Pinch-point path mapped to the robot, smoothed, warped onto ``start`` and ``end``."""
-        human = pinch_point(markers, self.models.marker_names_)
-        robot = gaussian_filter1d(self.map.to_robot(human), SMOOTHING_S * DEMONSTRATION_FPS, axis=0, mode="nearest")
-        return warp(robot, start, end)
+    def _robot_path(self, markers: np.ndarray, start: np.ndarray, end: np.ndarray, trim: bool | None = None) -> np.ndarray:
+        """Hand-point path smoothed, cut to its part over the table (``trim``: True from where it
+        rises, False up to where it sinks), mapped to the robot and warped onto ``start`` and ``end``."""
+        human = gaussian_filter1d(markers[:, self._hand], SMOOTHING_S * DEMONSTRATION_FPS, axis=0, mode="nearest")
+        if trim is not None:
+            human = over_the_table(human, first=trim)
+        return warp(self.map.to_robot(human), start, end)
 
     # ------------------------------------------------------------------ the three primitives (geometric)
     def approach(self, start: np.ndarray, grasp: np.ndarray) -> np.ndarray:
         """Tcp path (T, 3) from ``start`` to ``grasp`` (m), shaped by the approach action."""
-        target = self.map.to_human(grasp)
-        markers = self._synthesize(self.approach_id, np.r_[self._rest, target])
-        offset = pinch_point(markers[-1:], self.models.marker_names_)[0] - markers[-1, self._wrist]
-        markers = self._synthesize(self.approach_id, np.r_[self._rest, target - offset])
-        return self._robot_path(markers, start, grasp)
+        markers = self._synthesize(self.approach_id, np.r_[self._rest, self.map.to_human(grasp)])
+        return self._robot_path(markers, start, grasp, trim=True)
 
     def move(self, start: np.ndarray, end: np.ndarray, object_start: np.ndarray, object_end: np.ndarray) -> np.ndarray:
         """Tcp path (T, 3) from ``start`` to ``end`` (m) carrying an object from ``object_start`` to
@@ -168,11 +182,18 @@ class PHMMPaths:
 
     def remove(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Tcp path (T, 3) from ``start`` to ``end`` (m), shaped by the remove action."""
-        wrist = self.map.to_human(start)
-        markers = self._synthesize(self.remove_id, np.r_[wrist, self._training_mean(self.remove_id)[3:]])
-        return self._robot_path(markers, start, end)
+        markers = self._synthesize(self.remove_id, np.r_[self.map.to_human(start), self._training_mean(self.remove_id)[3:]])
+        return self._robot_path(markers, start, end, trim=False)
 
-    def timed(self, path: np.ndarray) -> np.ndarray:
-        """The path retimed under the hand's limits, one point (3,) per env step, ending at rest."""
-        v, a, j = self.limits.velocity, self.limits.acceleration, self.limits.jerk
-        return np.asarray(retime_path(path, v, a, j, dt=self.dt).position)
+    def timed(self, path: np.ndarray, limits: HandLimits | None = None) -> np.ndarray:
+        """The path retimed under the hand's limits, one point (3,) per env step, ending at rest.
+        It is first resampled every :data:`RESAMPLE_SPACING` of arc length: millimetre wiggles
+        where the state means crowd would otherwise set a crawling pace for the whole path."""
+        travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
+        if travelled[-1] <= 0.0:
+            return np.asarray(path[-1:], dtype=float)
+        s = np.linspace(0.0, travelled[-1], max(4, int(np.ceil(travelled[-1] / RESAMPLE_SPACING)) + 1))
+        points = np.stack([np.interp(s, travelled, path[:, i]) for i in range(3)], axis=1)
+        limits = limits or self.limits
+        v, a, j = limits.velocity, limits.acceleration, limits.jerk
+        return np.asarray(retime_path(points, v, a, j, dt=self.dt).position)

@@ -126,9 +126,9 @@ class ScriptedExpert(GraspAndInsert):
     def lift_legs(self, grasp: np.ndarray) -> list[Leg]:
         return [straight_leg([*grasp[:2], self.lift_z], 0.005)]
 
-    def move_end(self, hold: np.ndarray) -> np.ndarray:
+    def move_bottom_target(self) -> np.ndarray:
         """The peg's bottom ``ALIGN_HEIGHT`` over the board, over the hole: lined up there, then in."""
-        return np.array([*(self.world.hole[:2] + hold[:2]), self.align_z])
+        return np.array([*self.world.hole[:2], scene_module.BOARD_SIZE[2] + ALIGN_HEIGHT])
 
     def move_legs(self, start: np.ndarray, end: np.ndarray) -> list[Leg]:
         shift = np.r_[end[:2] - self.carry_way[-1][:2], 0.0]  # the way was planned for the planned grip
