@@ -136,6 +136,7 @@ class GraspAndInsert(ABC):
         robot = env.get_wrapper_attr("robot_description")
         self.ik = WholeBodyIK(robot.joint_names, rest_posture(robot))
         self.failure = None
+        self.world: WorldEstimate | None = None
         self.phase = Phase.DONE
 
     # ------------------------------------------------------------------ what subclasses provide
@@ -290,8 +291,9 @@ class GraspAndInsert(ABC):
         status = self.env.get_wrapper_attr("hand_status")
         self._reference = status.reference
         phase = self.phase
-        if status.unreachable and phase in (Phase.APPROACH, Phase.MOVE, Phase.ALIGN):
-            self.failure = "unreachable layout"
+        at_leg_end = bool(self.legs) and self.point >= len(self.legs[0].points) - 1
+        if status.unreachable and at_leg_end and phase in (Phase.APPROACH, Phase.MOVE, Phase.ALIGN):
+            self.failure = "unreachable layout"  # on the way the hand may lag a point it cannot reach; not at the end
             return
         if peg is not None and not peg[1] and phase in (Phase.APPROACH, Phase.BACK_OFF, Phase.TOUCH):
             self.failure = "peg knocked over"

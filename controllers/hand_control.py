@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.controllers.retiming import StreamingRetimer
 from hoap_actions.controllers.wholebody_ik import PELVIS, IKResult, IKStatus, WholeBodyIK
 
-__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "RobotDescription", "StandingRobot", "rest_posture"]
+__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "RobotDescription", "StandingRobot", "rest_posture", "start_posture"]
 
 
 class StandingRobot(Protocol):
@@ -86,6 +86,23 @@ UNREACHED_TICKS = 24  # ticks (0.1 s) of IK error above tolerance before the tar
 BALANCE_TILT = np.radians(0.5)  # rad, sole tilt beyond which a foot rocks (standing still, settled: < 0.1 deg)
 BALANCE_HOLD = 0.3  # s the hand keeps yielding after the soles are level again (a rocking swing takes ~0.3 s)
 BALANCE_BODY_SPEED = 0.02  # rad/s, IK speed limit of the legs and waist while the hand yields
+
+
+START = REST | {
+    "r_shoulder_pitch": 2.2,  # upper arm swung back and elbow fully bent: the hand waits over the
+    "r_elbow": -2.0,  # table's near edge, 4 cm up, where the overhead camera sees none of the arm over
+    "r_shoulder_roll": -0.2,  # the work area (from the rest posture the arm hid 14 of 300 pegs, seeds 0-99; from here none)
+}
+
+
+def start_posture(robot: StandingRobot | RobotDescription) -> np.ndarray:
+    """The posture ee_delta episodes begin in: :func:`rest_posture` with the right hand pulled back
+    over the table's near edge, out of the overhead camera's view of the work area."""
+    q = rest_posture(robot)
+    names = list(robot.joint_names)
+    for name, value in START.items():
+        q[names.index(name)] = value
+    return q
 
 
 def rest_posture(robot: StandingRobot | RobotDescription) -> np.ndarray:

@@ -212,6 +212,8 @@ def _standing_peg(colour: str, blob: np.ndarray, points: np.ndarray, top_z: floa
     top = blob & (np.abs(points[..., 2] - top_z) <= HEIGHT_TOLERANCE)
     for _ in range(TOP_FACE_REFITS):
         face = points[top]
+        if len(face) < 3:  # no plane through fewer points (a sliver of a face peeping past a hand)
+            return None
         middle = face.mean(axis=0)
         normal = np.linalg.svd(face - middle, full_matrices=False)[2][2]
         normal = normal if normal[2] > 0 else -normal

@@ -89,6 +89,7 @@ class PHMMPolicy(GraspAndInsert):
     # ------------------------------------------------------------------ synthesised paths
     def _legs(self, name: str, path: np.ndarray, tolerance: float) -> list[Leg]:
         self.synthesised[name] = path
+        self.executed[name] = []  # a new path (e.g. an approach after backing off) replaces the last
         return [Leg(self.paths.timed(path), tolerance)]
 
     def approach_legs(self, start: np.ndarray, grasp: np.ndarray) -> list[Leg]:
@@ -97,7 +98,7 @@ class PHMMPolicy(GraspAndInsert):
     def move_legs(self, start: np.ndarray, end: np.ndarray) -> list[Leg]:
         peg, hole = self.world.peg, self.world.hole
         path = self.paths.move(start, end, peg, hole)
-        self.synthesised["move"] = path
+        self.synthesised["move"], self.executed["move"] = path, []
         return [Leg(self.paths.timed(path, CARRY_LIMITS), MOVE_TOLERANCE)]
 
     def remove_legs(self, start: np.ndarray, end: np.ndarray) -> list[Leg]:
@@ -110,6 +111,12 @@ class PHMMPolicy(GraspAndInsert):
         if name is not None:
             self.executed.setdefault(name, []).append(self.tcp.copy())
         return action
+
+    def located(self) -> dict[str, np.ndarray] | None:
+        """The target peg and hole as located at the start of the episode (m), or None if not."""
+        if self.world is None:
+            return None
+        return {"peg": self.world.peg.copy(), "hole": self.world.hole.copy()}
 
     def path_deviations(self) -> dict[str, float]:
         """Per primitive performed so far, the largest distance (m) from an executed hand position to

@@ -7,6 +7,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from hoap_actions.controllers.phmm_policy import PHMMPolicy
 from hoap_actions.controllers.scripted_expert import ScriptedExpert
 from hoap_actions.envs import ENV_IDS
 from hoap_actions.errors import InvalidInputError
@@ -30,7 +31,7 @@ class RandomPolicy:
         return self.action_space.sample()
 
 
-POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert}
+POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert, "phmm": PHMMPolicy}
 """Policies by name; each has ``control_mode`` (the env's) and ``env_ids`` (the envs it can act in)."""
 
 

@@ -30,6 +30,7 @@ from hoap_actions.controllers.execution import (
 )
 from hoap_actions.controllers.grasp import REACH_PROBE_TOLERANCE, footprint_clearance, thumb_outline
 from hoap_actions.envs import scene as scene_module
+from hoap_actions.envs import world
 
 __all__ = ["ScriptedExpert", "footprint_clearance", "thumb_outline"]
 
@@ -115,9 +116,9 @@ class ScriptedExpert(GraspAndInsert):
 
     # ------------------------------------------------------------------ straight paths
     def approach_legs(self, start: np.ndarray, grasp: np.ndarray) -> list[Leg]:
-        """Straight up (the forearm starts low over the table, across the pegs' tops), over the grasp
-        point, down to it."""
-        rise = np.array([*start[:2], max(start[2], self.approach_z)])
+        """Up to the approach height (forwards over the table's edge when the hand starts in front of
+        it, where it cannot rise straight up), over the grasp point, down to it."""
+        rise = np.array([max(start[0], world.WORK_AREA_LOW[0]), start[1], max(start[2], self.approach_z)])
         return [straight_leg(rise, 0.005), straight_leg([*grasp[:2], self.approach_z]), straight_leg(grasp, 0.001)]
 
     def back_off_legs(self, start: np.ndarray) -> list[Leg]:

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import collections
+import multiprocessing
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -31,11 +33,18 @@ class Policy(Protocol):
 
 @dataclass(frozen=True)
 class EpisodeResult:
+    """How one episode ended. For a policy that locates the objects itself (``located()``), the
+    largest centre error (m) of its target peg and hole against the observation's true poses; for one
+    that follows synthesised paths (``path_deviations()``), each path's largest distance (m) from the
+    executed hand."""
+
     seed: int
     success: bool
     reason: str  # "success", "fell", "timeout", or the policy's own failure ("unreachable layout", ...)
     steps: int
     wall_s: float
+    perception_error_m: float | None = None
+    path_deviation_m: dict[str, float] | None = None
 
 
 def run_episode(
@@ -44,7 +53,9 @@ def run_episode(
     """One episode on the layout drawn from ``seed``; appends rendered frames if a list is given."""
     start = time.perf_counter()
     obs, info = env.reset(seed=seed)
+    truth = env.get_wrapper_attr("parse_observation")(obs) if hasattr(policy, "located") else None
     policy.reset(obs, info)
+    perception_error = _perception_error(policy.located(), truth) if truth is not None else None
     steps, reason = 0, "timeout"
     while True:
         if frames is not None:
@@ -64,7 +75,18 @@ def run_episode(
             break
     if frames is not None:
         frames.append(env.render())
-    return EpisodeResult(seed, reason == "success", reason, steps, time.perf_counter() - start)
+    deviations = policy.path_deviations() if hasattr(policy, "path_deviations") else None
+    return EpisodeResult(seed, reason == "success", reason, steps, time.perf_counter() - start,
+                         perception_error, deviations)
+
+
+def _perception_error(located: dict[str, np.ndarray] | None, truth: dict[str, Any]) -> float | None:
+    """Largest centre error (m) of the located target peg and hole; None if either was not located."""
+    if located is None:
+        return None
+    peg = truth["peg_positions"][truth["target_peg"]]
+    hole = truth["hole_positions"][truth["target_hole"]]
+    return float(max(np.linalg.norm(located["peg"] - peg), np.linalg.norm(located["hole"] - hole)))
 
 
 def run_episodes(
@@ -99,6 +121,53 @@ def run_episodes(
     return results
 
 
+_WORKER: dict[str, Any] = {}
+
+
+def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]]) -> None:
+    from hoap_actions.controllers.policies import policy_class
+
+    classes = {name: policy_class(cls, env_id) for name, (cls, _) in policies.items()}
+    modes = {c.control_mode for c in classes.values()}
+    if len(modes) != 1:
+        raise InvalidInputError(f"the compared policies act through different control modes {sorted(modes)}")
+    env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop())
+    _WORKER.update(env=env, policies={name: classes[name](env, **kwargs) for name, (_, kwargs) in policies.items()})
+
+
+def _run_seed(seed: int) -> dict[str, EpisodeResult]:
+    return {name: run_episode(_WORKER["env"], policy, seed) for name, policy in _WORKER["policies"].items()}
+
+
+def compare_policies(
+    env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1
+) -> dict[str, list[EpisodeResult]]:
+    """Every policy on every seed's layout, interleaved (seed by seed, policy after policy, in one
+    env per worker), so machine load falls alike on all. ``policies`` maps a label to a policy name
+    (:data:`~hoap_actions.controllers.policies.POLICIES`) and its keyword arguments. Episodes
+    depend on their seed alone, so ``workers`` processes give the serial results."""
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise InvalidInputError("seeds is empty; give at least one")
+    for s in seeds:
+        check_seed(s)
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise InvalidInputError(f"workers must be a positive integer; got {workers!r}")
+    initargs = (env_id, policies)
+    if workers == 1:
+        _start_worker(*initargs)
+        try:
+            rows = [_run_seed(s) for s in tqdm(seeds, desc="layouts", disable=not sys.stderr.isatty())]
+        finally:
+            _WORKER.pop("env").close()
+    else:
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=initargs) as pool:
+            rows = list(tqdm(pool.map(_run_seed, seeds), total=len(seeds), desc="layouts",
+                             disable=not sys.stderr.isatty()))
+    return {name: [row[name] for row in rows] for name in policies}
+
+
 def _write_media(frames: list[np.ndarray], video: Path | None, snapshot: Path | None, fps: int) -> None:
     import imageio.v3 as iio
 
@@ -109,10 +178,40 @@ def _write_media(frames: list[np.ndarray], video: Path | None, snapshot: Path | 
 
 
 def summarise(results: list[EpisodeResult]) -> dict[str, Any]:
-    """The JSON the CLI writes: success rate, falls, how episodes ended, and each episode."""
-    return {
-        "success_rate": float(np.mean([r.success for r in results])) if results else 0.0,
+    """The JSON the CLI writes: success rate (with its 95 % Wilson interval), falls, how episodes
+    ended, mean wall time, perception errors and path deviations where the policy has them, and
+    each episode."""
+    n = len(results)
+    successes = sum(r.success for r in results)
+    summary: dict[str, Any] = {
+        "success_rate": successes / n if n else 0.0,
+        "success_ci95": wilson_interval(successes, n),
         "falls": sum(r.reason == "fell" for r in results),
         "reasons": dict(collections.Counter(r.reason for r in results)),
-        "episodes": [asdict(r) for r in results],
+        "mean_wall_s": float(np.mean([r.wall_s for r in results])) if n else 0.0,
     }
+    errors = [r.perception_error_m for r in results if r.perception_error_m is not None]
+    if any(r.perception_error_m is not None or r.path_deviation_m is not None for r in results):
+        summary["perception_error_m"] = _median_max(errors) | {"not_located": n - len(errors)}
+        names = sorted({k for r in results for k in (r.path_deviation_m or {})})
+        summary["path_deviation_m"] = {k: _median_max([r.path_deviation_m[k] for r in results
+                                                         if r.path_deviation_m and k in r.path_deviation_m])
+                                       for k in names}
+    summary["episodes"] = [asdict(r) for r in results]
+    return summary
+
+
+def _median_max(values: list[float]) -> dict[str, float | None]:
+    if not values:
+        return {"median": None, "max": None}
+    return {"median": float(np.median(values)), "max": float(np.max(values))}
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """95 % Wilson score interval of a success rate (stays inside [0, 1] and is honest at 0 and n)."""
+    if n == 0:
+        return (0.0, 1.0)
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))

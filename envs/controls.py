@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from hoap_actions.controllers.hand_control import HandController, rest_posture
+from hoap_actions.controllers.hand_control import HandController, start_posture
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import TIMESTEP
@@ -76,10 +76,10 @@ class EEDeltaController:
     hand yields to balance and holds where it is. ``hand`` exposes the IK status (``hand.last``),
     whether the target proved unreachable and whether the hand is yielding (``hand.yielding``).
 
-    Episodes start from :func:`~hoap_actions.controllers.hand_control.rest_posture` (left arm raised,
-    right forearm tilted up) rather than the home posture, whose level right forearm lies across the
-    pegs' tops: :meth:`start_episode` poses the robot there on the freshly restored world, before the
-    env places the layout.
+    Episodes start from :func:`~hoap_actions.controllers.hand_control.start_posture` (left arm raised,
+    right hand pulled back over the table's near edge) rather than the home posture, whose level right
+    forearm lies across the pegs' tops and hides them from the overhead camera: :meth:`start_episode`
+    poses the robot there on the freshly restored world, before the env places the layout.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -90,8 +90,8 @@ class EEDeltaController:
         self.desired = np.zeros(3)
 
     def start_episode(self) -> None:
-        """On the freshly restored world, pose the robot in the rest posture episodes begin in."""
-        self.robot.reset(rest_posture(self.robot))
+        """On the freshly restored world, pose the robot in the posture episodes begin in."""
+        self.robot.reset(start_posture(self.robot))
 
     def reset(self) -> None:
         """Hold the hand where it is; the gripper keeps its current target."""
