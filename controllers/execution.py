@@ -126,10 +126,10 @@ class GraspAndInsert(ABC):
         spec_id = getattr(env.spec, "id", None)
         if spec_id not in self.env_ids:
             raise InvalidInputError(f"{type(self).__name__} performs grasp-and-insert; it needs one of "
-                                    f"{list(self.env_ids)}, not {spec_id or type(env.unwrapped).__name__}")
-        if getattr(env.unwrapped, "control_mode", None) != self.control_mode:
-            raise InvalidInputError(f"{type(self).__name__} needs control_mode='ee_delta'; this env uses "
-                                    f"{getattr(env.unwrapped, 'control_mode', None)!r}")
+                                    f"{list(self.env_ids)}, not {spec_id or type(env).__name__}")
+        control_mode = env.get_wrapper_attr("control_mode")
+        if control_mode != self.control_mode:
+            raise InvalidInputError(f"{type(self).__name__} needs control_mode='ee_delta'; this env uses {control_mode!r}")
         self.env = env
         self._parse = env.get_wrapper_attr("parse_observation")
         self._fps = float(env.metadata["render_fps"])

@@ -31,6 +31,7 @@ import numpy as np
 
 from hoap_actions.controllers.hand_control import HandLimits
 from hoap_actions.controllers.execution import GraspAndInsert, Leg, Phase, WorldEstimate
+from hoap_actions.controllers.figures import draw_episode
 from hoap_actions.controllers.perception import Detections, locate
 from hoap_actions.controllers.phmm_paths import PHMMPaths
 from hoap_actions.envs import scene as scene_module
@@ -71,8 +72,9 @@ class PHMMPolicy(GraspAndInsert):
 
     # ------------------------------------------------------------------ the world, from the camera
     def locate(self, obs: dict[str, np.ndarray], fields: dict[str, Any]) -> WorldEstimate | None:
-        view = self._capture(CAMERA, *IMAGE_SIZE)
+        self.view = view = self._capture(CAMERA, *IMAGE_SIZE)
         self.detections = found = locate(view.rgb, view.depth, view.camera)
+        self.target = (list(scene_module.PEG_COLOURS)[fields["target_peg"]], int(fields["target_hole"]))
         self.synthesised, self.executed = {}, {}
         colour = list(scene_module.PEG_COLOURS)[fields["target_peg"]]
         peg = found.peg(colour)
@@ -111,6 +113,14 @@ class PHMMPolicy(GraspAndInsert):
         if name is not None:
             self.executed.setdefault(name, []).append(self.tcp.copy())
         return action
+
+    def figure(self) -> np.ndarray | None:
+        """This episode as the paper's Fig. 9: the overhead image with the located pegs and holes, the
+        synthesised paths and the executed hand path (:func:`~hoap_actions.controllers.figures.draw_episode`)."""
+        if self.detections is None:
+            return None
+        executed = {name: np.asarray(points) for name, points in self.executed.items() if points}
+        return draw_episode(self.view.rgb, self.view.camera, self.detections, self.synthesised, executed, self.target)
 
     def located(self) -> dict[str, np.ndarray] | None:
         """The target peg and hole as located at the start of the episode (m), or None if not."""

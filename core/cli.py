@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import json
 import logging
 import signal
@@ -19,10 +20,11 @@ from pathlib import Path
 from typing import NoReturn
 
 from hoap_actions import ENV_IDS, __version__
-from hoap_actions.episodes import run_episodes, summarise
-from hoap_actions.errors import HoapActionsError
+from hoap_actions.envs.scene import CAMERAS
+from hoap_actions.episodes import compare_policies, film_episode, summarise
+from hoap_actions.errors import HoapActionsError, InvalidInputError
 from hoap_actions.outputs import claimed_file
-from hoap_actions.seeds import MAX_SEED
+from hoap_actions.seeds import MAX_SEED, check_seed
 
 EXIT_USAGE = 2  # a user's mistake or a bad file, as argparse uses it
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
@@ -65,35 +67,42 @@ def _path(text: str) -> Path:
 def _demo(args: argparse.Namespace) -> int:
     from hoap_actions.controllers.policies import policy_class
 
-    policy = policy_class(args.policy, args.env)
+    names = list(dict.fromkeys(args.policy))
+    classes = {name: policy_class(name, args.env) for name in names}
+    if len({c.control_mode for c in classes.values()}) > 1:
+        raise InvalidInputError(f"policies {names} act through different control modes; run them separately")
+    if args.models is not None and "phmm" not in names:
+        raise InvalidInputError("--models is for the phmm policy; add --policy phmm or leave --models out")
+    kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {}) for name in names}
+    check_seed(args.seed, count=args.episodes)
     last_seed = args.seed + args.episodes - 1
     with contextlib.ExitStack() as outputs:  # claimed before the first episode, published at the end
         claim = {
             name: outputs.enter_context(claimed_file(path, args.overwrite, what=name)) if path else None
             for name, path in (("video", args.video), ("snapshot", args.snapshot), ("report", args.json))
         }
-        results = run_episodes(
-            env_id=args.env,
-            policy_factory=policy,
-            episodes=args.episodes,
-            seed=args.seed,
-            video=claim["video"],
-            snapshot=claim["snapshot"],
-            env_kwargs={"control_mode": policy.control_mode},  # the scripted expert acts through ee_delta
-        )
-        summary = summarise(results)
+        results = compare_policies(args.env, {name: (name, kwargs[name]) for name in names},
+                                   range(args.seed, last_seed + 1), workers=args.workers)
+        if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the first one again, filmed
+            film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed,
+                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera)
+        summaries = {name: summarise(episodes) for name, episodes in results.items()}
         if claim["report"]:
-            claim["report"].write_text(json.dumps(summary, indent=2) + "\n")
-    print(
-        f"{args.policy} policy on {args.env}: success rate {summary['success_rate']:.1%} "
-        f"over {len(results)} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}"
-    )
-    for reason, count in summary["reasons"].items():
-        print(f"  {reason}: {count}")
+            report = {"env": args.env, "seeds": [args.seed, last_seed], "policies": summaries}
+            claim["report"].write_text(json.dumps(report, indent=2) + "\n")
+    for name, summary in summaries.items():
+        low, high = summary["success_ci95"]
+        print(f"{name} policy on {args.env}: success rate {summary['success_rate']:.1%} (95 % interval {low:.0%}-{high:.0%}) "
+              f"over {args.episodes} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}, "
+              f"mean episode {summary['mean_wall_s']:.1f} s")
+        for reason, count in summary["reasons"].items():
+            print(f"  {reason}: {count}")
+        if "perception_error_m" in summary and summary["perception_error_m"]["max"] is not None:
+            print(f"  largest perception error of a target peg or hole: {1000 * summary['perception_error_m']['max']:.2f} mm")
     if args.video:
-        print(f"video of the first episode: {args.video}")
+        print(f"video of the first episode ({names[0]}, camera {args.camera}): {args.video}")
     if args.snapshot:
-        print(f"scene snapshot: {args.snapshot}")
+        print(f"picture of the first episode ({names[0]}): {args.snapshot}")
     if args.json:
         print(f"results: {args.json}")
     return 0
@@ -164,14 +173,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="run a policy for N episodes and report its success rate")
-    demo.add_argument("--policy", default="random", choices=["random", "scripted"],
-                      help="random: any env, joint_delta; scripted: the grasp-and-insert expert, PegInsert-v0 only, "
-                           "ee_delta (default: random)")
+    demo.add_argument("--policy", nargs="+", default=["random"], choices=["random", "scripted", "phmm"],
+                      help="random: any env, joint_delta; scripted: the grasp-and-insert expert (true poses, straight "
+                           "paths); phmm: grasp-and-insert from the overhead camera with paths synthesised by the learned "
+                           "models (both PegInsert-v0, ee_delta). Several run side by side on the same layouts "
+                           "(default: random)")
+    demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
     demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
     demo.add_argument("--episodes", type=_positive_int, default=10)
     demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
-    demo.add_argument("--video", type=_path, help="write an mp4 of the first episode here")
-    demo.add_argument("--snapshot", type=_path, help="write a PNG of the first episode's scene here")
+    demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
+    demo.add_argument("--video", type=_path, help="write an mp4 of the first policy's first episode here")
+    demo.add_argument("--camera", default="closeup", choices=sorted(CAMERAS), help="the video's camera (default: %(default)s)")
+    demo.add_argument("--snapshot", type=_path, help="write a PNG of the first episode here: for the phmm policy the "
+                                                      "overhead image with what it located and the paths it synthesised")
     demo.add_argument("--json", type=_path, help="write per-episode results here")
     demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
     demo.set_defaults(func=_demo)

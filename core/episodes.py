@@ -89,36 +89,35 @@ def _perception_error(located: dict[str, np.ndarray] | None, truth: dict[str, An
     return float(max(np.linalg.norm(located["peg"] - peg), np.linalg.norm(located["hole"] - hole)))
 
 
-def run_episodes(
+def film_episode(
     env_id: str,
     policy_factory: Callable[[gymnasium.Env], Policy],
-    episodes: int,
-    seed: int = 0,
+    seed: int,
+    control_mode: str,
     video: Path | None = None,
     snapshot: Path | None = None,
-    env_kwargs: dict[str, Any] | None = None,
-) -> list[EpisodeResult]:
-    """Episodes on seeds ``seed .. seed + episodes - 1``; the first one is filmed if asked.
-
-    ``video`` (mp4) and ``snapshot`` (png) are written by the caller's claims: pass the partial
-    paths that :func:`hoap_actions.outputs.claimed_file` yields, so they are checked before the first
-    episode. Raises InvalidInputError for fewer than one episode or seeds outside 0..2**63-1.
-    """
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
-        raise InvalidInputError(f"episodes must be a positive integer; got {episodes!r}")
-    check_seed(seed, count=episodes)
-    env = gymnasium.make(env_id, render_mode="rgb_array", **(env_kwargs or {}))
-    policy = policy_factory(env)
-    results = []
+    camera: str = "closeup",
+) -> EpisodeResult:
+    """One episode filmed from ``camera``: an mp4 of it at ``video`` and, at ``snapshot``, the policy's
+    own picture of it (``figure()``, e.g. the PHMM policy's Fig. 9) or else its first frame. Pass the
+    partial paths that :func:`hoap_actions.outputs.claimed_file` yields, so the outputs are checked
+    before the episode runs."""
+    check_seed(seed)
+    env = gymnasium.make(env_id, render_mode="rgb_array", camera=camera, control_mode=control_mode)
     try:
-        for i in tqdm(range(episodes), desc="episodes", disable=not sys.stderr.isatty()):
-            frames: list[np.ndarray] | None = [] if i == 0 and (video or snapshot) else None
-            results.append(run_episode(env, policy, seed + i, frames))
-            if frames:
-                _write_media(frames, video, snapshot, env.metadata["render_fps"])
+        policy = policy_factory(env)
+        frames: list[np.ndarray] = []
+        result = run_episode(env, policy, seed, frames)
+        figure = policy.figure() if hasattr(policy, "figure") else None
     finally:
         env.close()
-    return results
+    import imageio.v3 as iio
+
+    if snapshot:
+        iio.imwrite(snapshot, figure if figure is not None else frames[0])
+    if video:
+        iio.imwrite(video, np.stack(frames), fps=env.metadata["render_fps"], codec="libx264", macro_block_size=1)
+    return result
 
 
 _WORKER: dict[str, Any] = {}
@@ -166,15 +165,6 @@ def compare_policies(
             rows = list(tqdm(pool.map(_run_seed, seeds), total=len(seeds), desc="layouts",
                              disable=not sys.stderr.isatty()))
     return {name: [row[name] for row in rows] for name in policies}
-
-
-def _write_media(frames: list[np.ndarray], video: Path | None, snapshot: Path | None, fps: int) -> None:
-    import imageio.v3 as iio
-
-    if snapshot:
-        iio.imwrite(snapshot, frames[0])
-    if video:
-        iio.imwrite(video, np.stack(frames), fps=fps, codec="libx264", macro_block_size=1)
 
 
 def summarise(results: list[EpisodeResult]) -> dict[str, Any]:

@@ -59,6 +59,9 @@ CAMERAS: dict[str, Camera] = {
     "overhead": Camera(
         eye=(0.02, 0.0, 0.75), target=(0.02, 0.0, 0.0), up=(1.0, 0.0, 0.0), fov_deg=22.0, near=0.3, far=1.2
     ),
+    # From over the table's far right corner, 48 cm from the work area: close enough to see a grasp
+    # and an insertion, beside the arm rather than behind it.
+    "closeup": Camera(eye=(0.2, -0.3, 0.3), target=(0.0, 0.0, 0.03), fov_deg=38.0, near=0.05, far=2.0),
     # Across the table, facing the robot: head to feet, both arms, the table top and the board.
     "front": Camera(
         eye=(0.8, world.ROBOT_FEET_XY[1], 0.25), target=(*world.ROBOT_FEET_XY, 0.06), fov_deg=45.0, near=0.1, far=2.0

@@ -281,7 +281,8 @@ def no_long_work(monkeypatch):
     import hoap_actions.primitives.discovery_files as discovery_files
 
     monkeypatch.setattr(recording, "_record_tasks", forbidden)
-    monkeypatch.setattr(cli_module, "run_episodes", forbidden)
+    monkeypatch.setattr(cli_module, "compare_policies", forbidden)
+    monkeypatch.setattr(cli_module, "film_episode", forbidden)
     monkeypatch.setattr(discovery_files, "_discover", forbidden)
 
 

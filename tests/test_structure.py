@@ -89,3 +89,11 @@ def test_only_the_sim_facade_calls_pybullet():
                       ([a.name for a in n.names] if isinstance(n, ast.Import) else [n.module or ""])
                       for n in ast.walk(ast.parse(path.read_text())))]
     assert callers == ["hoap_actions.envs.sim"], callers
+
+
+def test_no_policy_reaches_into_the_envs_internals():
+    """Policies ask the env through its public answers (parse_observation, capture, hand_status,
+    robot_description), never through ``env.unwrapped``."""
+    policies = [name for name in MODULES if name.startswith("hoap_actions.controllers.")]
+    reaching = [name for name in policies if "unwrapped" in MODULES[name].read_text()]
+    assert reaching == [], reaching

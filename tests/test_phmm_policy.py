@@ -1,0 +1,94 @@
+"""The PHMM policy: grasp-and-insert from the camera and the learned models, blind to the simulator's poses."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+
+import hoap_actions  # noqa: F401
+from hoap_actions.controllers.phmm_policy import PHMMPolicy
+from hoap_actions.episodes import compare_policies, run_episode, wilson_interval
+from hoap_actions.errors import InvalidInputError
+
+LAYOUTS = (1, 2)  # development seeds (0-99); the held-out figure uses 30000-30199
+
+
+class HiddenPoses(gymnasium.ObservationWrapper):
+    """Replaces the task's pose fields (pegs, holes) and both goal vectors by NaN, keeping the robot's own
+    state and the target one-hots: what the policy may not read is not there."""
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        super().__init__(env)
+        robot = env.unwrapped.robot
+        n_pegs = env.unwrapped.scene.n_pegs
+        self._start = 2 * len(robot.joint_names) + 7 + 3
+        self._stop = self._start + 7 * n_pegs + 3 * 3  # peg poses, then hole centres; the one-hots stay
+
+    def observation(self, observation):
+        hidden = {key: value.copy() for key, value in observation.items()}
+        hidden["observation"][self._start:self._stop] = np.nan
+        hidden["achieved_goal"][:] = np.nan
+        hidden["desired_goal"][:] = np.nan
+        return hidden
+
+
+@pytest.fixture(scope="module")
+def hidden_env():
+    env = HiddenPoses(gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta"))
+    yield env
+    env.close()
+
+
+def test_the_policy_succeeds_without_the_simulators_poses(hidden_env):
+    policy = PHMMPolicy(hidden_env)
+    for seed in LAYOUTS:
+        obs, _ = hidden_env.reset(seed=seed)
+        assert np.isnan(obs["observation"]).any() and np.isnan(obs["achieved_goal"]).all()
+        result = run_episode(hidden_env, policy, seed)
+        assert result.success, result
+        deviations = policy.path_deviations()
+        assert set(deviations) >= {"approach", "move"}
+        assert all(d < 0.01 for d in deviations.values()), deviations  # the hand followed what was synthesised
+
+
+def test_what_it_located_is_where_the_simulator_has_it():
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
+    try:
+        policy = PHMMPolicy(env)
+        obs, info = env.reset(seed=LAYOUTS[0])
+        policy.reset(obs, info)
+        truth = env.get_wrapper_attr("parse_observation")(obs)
+        located = policy.located()
+        assert np.linalg.norm(located["peg"] - truth["peg_positions"][truth["target_peg"]]) < 0.002
+        assert np.linalg.norm(located["hole"] - truth["hole_positions"][truth["target_hole"]]) < 0.002
+        figure = policy.figure()
+        assert figure.shape == (720, 960, 3) and figure.dtype == np.uint8
+    finally:
+        env.close()
+
+
+def test_the_policy_needs_peg_insert_with_ee_delta():
+    env = gymnasium.make("hoap_actions/PegInsert-v0")
+    with pytest.raises(InvalidInputError, match="ee_delta"):
+        PHMMPolicy(env)
+    env.close()
+    env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+    with pytest.raises(InvalidInputError, match="PegInsert"):
+        PHMMPolicy(env)
+    env.close()
+
+
+def test_parallel_comparison_gives_the_serial_results():
+    policies = {"scripted": ("scripted", {})}
+    serial = compare_policies("hoap_actions/PegInsert-v0", policies, [5, 6], workers=1)["scripted"]
+    parallel = compare_policies("hoap_actions/PegInsert-v0", policies, [5, 6], workers=2)["scripted"]
+    assert [(r.seed, r.reason, r.steps) for r in serial] == [(r.seed, r.reason, r.steps) for r in parallel]
+
+
+@pytest.mark.parametrize("successes, n", [(0, 10), (95, 100), (190, 200), (200, 200)])
+def test_wilson_interval_matches_scipy(successes, n):
+    from scipy.stats import binomtest
+
+    expected = binomtest(successes, n).proportion_ci(confidence_level=0.95, method="wilson")
+    np.testing.assert_allclose(wilson_interval(successes, n), (expected.low, expected.high), atol=1e-6)
