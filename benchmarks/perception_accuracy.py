@@ -1,7 +1,11 @@
 """Perception accuracy: peg and hole centres located from the overhead camera against the simulator's poses.
 
 Held-out layouts, declared before the first run: the method was tuned on ``PegInsert-v0`` resets with
-seeds 0-49 and is measured once on seeds 10000-10099 (``--seeds`` to change). Centres as defined in
+seeds 0-49 and measured once on seeds 10000-10099 in the home posture (``joint_delta``), whose level
+forearm hid 2 pegs. Since then the face fit needs three points (a 2-pixel face crashed it on seed 12
+of the PHMM policy's development seeds) and the robot acts from the ee_delta start posture, hand out
+of the camera's view: measured once more on fresh seeds 11000-11099 in that posture (the default;
+``--seeds`` and ``--control-mode`` to change). Centres as defined in
 ``hoap_actions.controllers.perception``: a peg's centre of mass (its base position), a hole's axis at
 the board's top surface (``Scene.hole_positions``). A detection is matched to the nearest true object
 of its kind within ``MATCH_RADIUS``; a true object with no match is missed, a detection with none is
@@ -30,13 +34,13 @@ from hoap_actions.controllers.perception import locate
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json
 
-HELD_OUT_SEEDS = (10000, 10100)  # [first, last) seeds, never used while tuning (that used 0-49)
+HELD_OUT_SEEDS = (11000, 11100)  # [first, last) seeds, never used while tuning (0-49) or measuring before (10000-10099)
 MATCH_RADIUS = 0.01  # m, a detection farther than this from every true object of its kind is a phantom
 
 
-def measure(seeds: range, width: int) -> dict:
+def measure(seeds: range, width: int, control_mode: str = "ee_delta") -> dict:
     """Errors (m) per kind, missed and phantom counts, failures by seed, and timings (s)."""
-    env = gymnasium.make("hoap_actions/PegInsert-v0")
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode=control_mode)
     sim, scene = env.unwrapped.sim, env.unwrapped.scene
     errors: dict[str, list[float]] = {"peg": [], "hole": []}
     missed = {"peg": 0, "hole": 0}
@@ -89,9 +93,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("perception_accuracy.json")])
     parser.add_argument("--seeds", type=int, nargs=2, default=HELD_OUT_SEEDS, metavar=("FIRST", "END"))
     parser.add_argument("--width", type=int, default=320, help="image width in px, height 3/4 of it (default %(default)s)")
+    parser.add_argument("--control-mode", default="ee_delta", choices=["ee_delta", "joint_delta"],
+                        help="the posture the robot starts in: ee_delta's (hand out of view) or the home posture")
     args = parser.parse_args()
     seeds = range(*args.seeds)
-    result = measure(seeds, args.width)
+    result = measure(seeds, args.width, args.control_mode)
     summary = {}
     for kind in ("peg", "hole"):
         mm = 1000 * np.asarray(result["errors"][kind])
@@ -104,7 +110,7 @@ def main() -> None:
     for failure in result["failures"]:
         print("  over 1 mm or missed:", failure)
     write_json(args.output, {
-        "seeds": [seeds.start, seeds.stop], "image_size": [args.width, args.width * 3 // 4], **summary,
+        "seeds": [seeds.start, seeds.stop], "control_mode": args.control_mode, "image_size": [args.width, args.width * 3 // 4], **summary,
         "render_ms_median": render_ms, "perception_ms_median": locate_ms, "failures": result["failures"],
         "environment": numeric_environment(None, opencv=cv2.__version__),
     })

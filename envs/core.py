@@ -109,7 +109,6 @@ class HoapEnv(gymnasium.Env):
             self.task = self.task_cls(self.sim, self.robot, self.scene, **task_kwargs)
             self.controller = make_controller(control_mode, self.robot)
             self.robot.reset()
-            self._initial_state = self.sim.save_state()
             self.task.reset(np.random.default_rng(0))  # a first layout, only to size the observation
             obs = self._observation()
         except BaseException:
@@ -123,7 +122,8 @@ class HoapEnv(gymnasium.Env):
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         super().reset(seed=seed)
-        self.sim.restore_state(self._initial_state)
+        self.sim.rebuild()  # a fresh world every episode: same seed, same episode, whatever ran before
+        self.robot.reset()
         self.controller.start_episode()
         self.task.reset(self.np_random)
         self.robot.set_targets(self.robot.joint_positions())

@@ -92,3 +92,26 @@ def test_wilson_interval_matches_scipy(successes, n):
 
     expected = binomtest(successes, n).proportion_ci(confidence_level=0.95, method="wilson")
     np.testing.assert_allclose(wilson_interval(successes, n), (expected.low, expected.high), atol=1e-6)
+
+
+def _trace(env, policy, seed, steps):
+    obs, info = env.reset(seed=seed)
+    policy.reset(obs, info)
+    observations = []
+    for _ in range(steps):
+        obs, *_ = env.step(policy(obs))
+        observations.append(obs["observation"])
+    return np.array(observations)
+
+
+def test_an_episode_does_not_depend_on_what_the_env_did_before():
+    """Seed 25's PHMM episode in a fresh env against the same after another episode: the first
+    episode of a fresh env used to differ from step 193 on (the broad phase's first run)."""
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
+    try:
+        policy = PHMMPolicy(env)
+        first = _trace(env, policy, 25, 200)
+        _trace(env, policy, 24, 20)
+        np.testing.assert_array_equal(_trace(env, policy, 25, 200), first)
+    finally:
+        env.close()
