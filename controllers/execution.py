@@ -197,6 +197,11 @@ class GraspAndInsert(ABC):
         return [straight_leg(start + [0.0, 0.0, BACK_OFF_HEIGHT], tolerance=0.005)]
 
     # ------------------------------------------------------------------ policy protocol
+    @property
+    def done(self) -> bool:
+        """True once the whole sequence has run (whether or not the peg went in)."""
+        return self.failure is None and self.phase == Phase.DONE and self.world is not None
+
     def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         fields = self._parse(obs)
         self.failure = None

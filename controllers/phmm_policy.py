@@ -14,8 +14,8 @@ models, mapped to the robot, rescaled onto its endpoints and retimed
 (:class:`~hoap_actions.controllers.phmm_paths.PHMMPaths`), and tracked by the whole-body IK of the
 ee_delta controller. Each primitive starts where the previous one ended. What is scripted is what
 the paper scripts, the gripper: it closes at the end of the approach (after the palm slides the last
-3.5 mm onto the peg) and opens at the end of the move, with the peg's bottom 8 mm into the hole; and
-a hand blocked on its way down backs off 3 cm and comes again with another grasp along the palm.
+3.5 mm onto the peg) and opens at the end of the move, over the hole, and the peg drops in; and a
+hand blocked on its way down backs off 3 cm and comes again with another grasp along the palm.
 
 Where the held peg's bottom is relative to the hand is taken at the grasp, from the located peg and
 the measured hand: this policy does not see the peg once it holds it.
@@ -44,6 +44,7 @@ IMAGE_SIZE = (320, 240)  # px: 1.2 mm per pixel on the table, the resolution per
 APPROACH_TOLERANCE = 0.002  # m, the approach ends with the hand settled this near the grasp point
 MOVE_TOLERANCE = 0.002  # m, the move ends with the peg this near its place in the hole
 REMOVE_TOLERANCE = 0.01  # m
+RELEASE_HEIGHT = 0.003  # m, the held peg's bottom over the board's top when the gripper opens over the hole
 CARRY_LIMITS = HandLimits(velocity=0.15, acceleration=0.3, jerk=3.0)
 
 
@@ -89,6 +90,14 @@ class PHMMPolicy(GraspAndInsert):
         return WorldEstimate(peg=peg.position_m, others=others, holes=holes, hole=holes[fields["target_hole"]])
 
     # ------------------------------------------------------------------ synthesised paths
+    def move_bottom_target(self) -> np.ndarray:
+        """Over the hole, the peg's bottom :data:`RELEASE_HEIGHT` above the board: the gripper opens
+        there and the peg drops in, as the paper's robot lets go over the hole. (Ending the move 8 mm
+        down in the hole, as the expert's straight descent does, drove the peg's bottom into the
+        board beside the hole: a synthesised set-down still has 1.5 cm to go sideways 1 cm above
+        its end, measured on development layouts.)"""
+        return np.array([*self.world.hole[:2], scene_module.BOARD_SIZE[2] + RELEASE_HEIGHT])
+
     def _legs(self, name: str, path: np.ndarray, tolerance: float) -> list[Leg]:
         self.synthesised[name] = path
         self.executed[name] = []  # a new path (e.g. an approach after backing off) replaces the last

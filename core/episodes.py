@@ -22,7 +22,8 @@ from hoap_actions.seeds import check_seed
 
 
 class Policy(Protocol):
-    """``obs -> action`` for any ``env.step`` loop; ``failure`` names why it gave up (ends the episode)."""
+    """``obs -> action`` for any ``env.step`` loop; ``failure`` names why it gave up (ends the episode).
+    A policy may also say it is ``done`` (it has nothing left to do), which ends the episode too."""
 
     failure: str | None
 
@@ -40,7 +41,7 @@ class EpisodeResult:
 
     seed: int
     success: bool
-    reason: str  # "success", "fell", "timeout", or the policy's own failure ("unreachable layout", ...)
+    reason: str  # "success", "fell", "timeout", "finished without success", or the policy's own failure
     steps: int
     wall_s: float
     perception_error_m: float | None = None
@@ -62,6 +63,9 @@ def run_episode(
             frames.append(env.render())
         if policy.failure:
             reason = policy.failure
+            break
+        if getattr(policy, "done", False):  # it did all it meant to, and the goal is not reached
+            reason = "finished without success"
             break
         obs, _, terminated, truncated, info = env.step(policy(obs))
         steps += 1

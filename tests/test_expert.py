@@ -18,7 +18,8 @@ from hoap_actions.controllers.scripted_expert import ScriptedExpert, footprint_c
 from hoap_actions.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
 
-FAILURE_REASONS = {"unreachable layout", "grasp slipped", "peg knocked over", "approach blocked", "timeout"}
+FAILURE_REASONS = {"unreachable layout", "grasp slipped", "peg knocked over", "approach blocked", "timeout",
+                   "finished without success"}
 FIXED_LAYOUTS = range(10)  # seeds 0-9, the first ten: not picked
 
 
