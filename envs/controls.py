@@ -77,7 +77,7 @@ class EEDeltaController:
     whether the target proved unreachable and whether the hand is yielding (``hand.yielding``).
 
     Episodes start from :func:`~hoap_actions.controllers.hand_control.start_posture` (left arm raised,
-    right hand pulled back over the table's near edge) rather than the home posture, whose level right
+    right hand pulled back beside the work area) rather than the home posture, whose level right
     forearm lies across the pegs' tops and hides them from the overhead camera: :meth:`start_episode`
     poses the robot there on the freshly restored world, before the env places the layout.
     """
