@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import atexit
 import collections
 import multiprocessing
 import sys
@@ -135,6 +136,7 @@ def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]]) -> None:
     if len(modes) != 1:
         raise InvalidInputError(f"the compared policies act through different control modes {sorted(modes)}")
     env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop())
+    atexit.register(env.close)  # a worker process closes its simulator before the interpreter goes
     _WORKER.update(env=env, policies={name: classes[name](env, **kwargs) for name, (_, kwargs) in policies.items()})
 
 

@@ -287,6 +287,7 @@ class Sim:
         if self._client is not None:
             try:
                 self._client.disconnect()
+                self._client._client = -1  # so BulletClient.__del__ does not disconnect again at interpreter exit
             finally:
                 self._client = None
 
