@@ -9,7 +9,7 @@ import pytest
 import hoap_actions  # noqa: F401
 from hoap_actions.controllers.phmm_policy import PHMMPolicy
 from hoap_actions.episodes import compare_policies, run_episode, wilson_interval
-from hoap_actions.errors import InvalidInputError
+from hoap_actions.errors import HoapActionsError, InvalidInputError
 
 LAYOUTS = (1, 2)  # development seeds (0-99); the held-out figure uses 30000-30199
 
@@ -115,3 +115,23 @@ def test_an_episode_does_not_depend_on_what_the_env_did_before():
         np.testing.assert_array_equal(_trace(env, policy, 25, 200), first)
     finally:
         env.close()
+
+
+def test_models_come_from_a_directory_too(tmp_path):
+    from hoap_actions.default_models import default_models_path
+
+    env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
+    try:
+        policy = PHMMPolicy(env, models=default_models_path())
+        assert policy.paths.move_id in policy.paths.models.actions_
+        with pytest.raises(HoapActionsError, match="no-such-models"):
+            PHMMPolicy(env, models=tmp_path / "no-such-models")
+    finally:
+        env.close()
+
+
+def test_the_cli_refuses_models_without_the_phmm_policy(capsys):
+    from hoap_actions.cli import main
+
+    assert main(["demo", "--policy", "scripted", "--models", "somewhere", "--episodes", "1"]) == 2
+    assert "--models is for the phmm policy" in capsys.readouterr().err
