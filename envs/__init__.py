@@ -8,16 +8,17 @@ from __future__ import annotations
 
 import gymnasium
 
-# id -> (entry point, max_episode_steps at 30 Hz)
-_SPECS: dict[str, tuple[str, int]] = {
-    "hoap_actions/PegInsert-v0": ("hoap_actions.envs.tasks.peg_insert:PegInsertEnv", 600),
-    "hoap_actions/Reach-v0": ("hoap_actions.envs.tasks.reach:ReachEnv", 150),
+# id -> entry point; the time limit is the task's episode_steps (30 Hz), which the fall penalty uses too
+_SPECS: dict[str, str] = {
+    "hoap_actions/PegInsert-v0": "hoap_actions.envs.tasks.peg_insert:PegInsertEnv",
+    "hoap_actions/Reach-v0": "hoap_actions.envs.tasks.reach:ReachEnv",
 }
+_EPISODE_STEPS = {"hoap_actions/PegInsert-v0": 600, "hoap_actions/Reach-v0": 150}
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
 
 
 def register_envs() -> None:
     """Register every hoap_actions environment id with Gymnasium (idempotent)."""
-    for env_id, (entry_point, max_steps) in _SPECS.items():
+    for env_id, entry_point in _SPECS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=entry_point, max_episode_steps=max_steps)
+            gymnasium.register(id=env_id, entry_point=entry_point, max_episode_steps=_EPISODE_STEPS[env_id])

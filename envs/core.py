@@ -10,6 +10,7 @@ from __future__ import annotations
 import inspect
 import logging
 from dataclasses import dataclass, replace
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import gymnasium
@@ -28,6 +29,19 @@ logger = logging.getLogger(__name__)
 
 PHYSICS_STEPS_PER_ACTION = 8  # 240 Hz physics, 30 Hz actions
 SETTLE_STEPS = 24  # physics steps after placing a layout, so objects rest before the first observation
+
+
+DENSE_DISTANCE_CAP = 1.0  # m: a dense step's reward is at least -1, as a sparse one's
+FALL_PENALTY_STEPS = 1.0  # a fall costs this many episodes' worth of the worst step reward (-1 each)
+
+
+def _fallen(info: dict | Sequence[dict] | None, shape: tuple[int, ...]) -> np.ndarray:
+    """The ``fallen`` flags of one info dict or of one dict per goal, broadcast to ``shape``."""
+    if info is None:
+        return np.zeros(shape, dtype=bool)
+    if isinstance(info, dict):
+        return np.full(shape, bool(info.get("fallen", False)))
+    return np.array([bool(i.get("fallen", False)) for i in np.ravel(info)], dtype=bool).reshape(shape)
 
 
 @dataclass(frozen=True)
@@ -64,8 +78,10 @@ class HoapEnv(gymnasium.Env):
     Actions: a Box in [-1, 1] (see the control mode); values outside it are clipped to it, as
     Gymnasium's bounded Box actions are, and ``info["action_clipped"]`` says so on that step.
 
-    ``info["is_success"]`` is set on reset and on every step. The episode terminates on success or
-    when the robot falls; the time limit is applied by Gymnasium's ``TimeLimit`` on registration.
+    Rewards (``reward_type``): sparse 0 on success else -1, dense minus the goal distance capped at
+    1 m; a fall ends the episode and costs a whole episode's worth of -1s (:meth:`compute_reward`),
+    so no learner gains by falling. ``info["is_success"]`` is set on reset and on every step. The
+    episode terminates on success or when the robot falls; the time limit is applied by Gymnasium's ``TimeLimit`` on registration.
     ``render_mode="human"`` opens PyBullet's window; without a display it raises
     :class:`~hoap_actions.errors.DisplayUnavailableError`.
     """
@@ -149,12 +165,23 @@ class HoapEnv(gymnasium.Env):
         terminated = bool(info["is_success"] or info["fallen"])
         return obs, reward, terminated, False, info
 
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: dict | None) -> np.ndarray:
-        """Vectorised reward over goal batches: sparse is 0 on success else -1; dense is minus the distance (m)."""
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                       info: dict | Sequence[dict] | None) -> np.ndarray:
+        """Vectorised reward over goal batches (``info`` one dict, or one per goal as HER passes them).
+
+        Sparse: 0 on success, else -1. Dense: minus the distance (m), at most 1 m. Every step's reward
+        is thus in [-1, 0], and a step on which the robot falls (``info["fallen"]``; it ends the
+        episode) earns :data:`FALL_PENALTY_STEPS` times the task's episode length in steps, negated:
+        at least as bad as any whole episode without a fall, so falling early never pays (without it
+        PPO learned to fall on ``Reach-v0``: a fall ended an episode of negative rewards)."""
         distance = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
         if self.reward_type == "dense":
-            return -distance.astype(np.float32)
-        return -(~self.task.goal_reached(achieved_goal, desired_goal)).astype(np.float32)
+            reward = -np.minimum(distance, DENSE_DISTANCE_CAP)
+        else:
+            reward = -(~self.task.goal_reached(achieved_goal, desired_goal)).astype(float)
+        fallen = _fallen(info, np.shape(distance))
+        penalty = -FALL_PENALTY_STEPS * float(self.task_cls.episode_steps)
+        return np.where(fallen, penalty, reward).astype(np.float32)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode == "rgb_array":

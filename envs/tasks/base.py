@@ -14,6 +14,8 @@ from hoap_actions.envs.sim import Sim
 class Task(ABC):
     """One task on the shared world; subclasses take extra keyword arguments after ``scene``."""
 
+    episode_steps: int  # env steps (30 Hz) an episode may last: the registered time limit
+
     def __init__(self, sim: Sim, robot: Robot, scene: Scene) -> None:
         self.sim, self.robot, self.scene = sim, robot, scene
 

@@ -28,6 +28,8 @@ class PegInsertTask(Task):
     recomputed for relabelled goals.
     """
 
+    episode_steps = 600
+
     def __init__(self, sim: Sim, robot: Robot, scene: Scene, peg: int | None = None, hole: int | None = None) -> None:
         super().__init__(sim, robot, scene)
         for label, value, count in (("peg", peg, scene.n_pegs), ("hole", hole, scene_module.N_HOLES)):

@@ -19,6 +19,8 @@ class ReachTask(Task):
     target. Success: within 1 cm.
     """
 
+    episode_steps = 150
+
     def reset(self, rng: np.random.Generator) -> None:
         self.scene.apply(self.scene.sample_layout(rng))
         xy = rng.uniform(world.WORK_AREA_LOW, world.WORK_AREA_HIGH)
