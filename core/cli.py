@@ -108,6 +108,17 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _collect(args: argparse.Namespace) -> int:
+    from hoap_actions.collect import collect
+
+    if args.models is not None and args.policy != "phmm":
+        raise InvalidInputError("--models is for the phmm policy; use --policy phmm or leave --models out")
+    kwargs = {"models": str(args.models)} if args.models is not None else {}
+    path = collect(args.env, args.policy, args.episodes, args.seed, args.dataset_id, kwargs, overwrite=args.overwrite)
+    print(f"wrote the Minari dataset {args.dataset_id} ({args.episodes} episodes of the {args.policy} policy): {path}")
+    return 0
+
+
 def _record(args: argparse.Namespace) -> int:
     from hoap_actions.envs.recording import record
 
@@ -190,6 +201,16 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--json", type=_path, help="write per-episode results here")
     demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
     demo.set_defaults(func=_demo)
+
+    col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, imitation)")
+    col.add_argument("--policy", required=True, choices=["random", "scripted", "phmm"])
+    col.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
+    col.add_argument("--episodes", type=_positive_int, default=10)
+    col.add_argument("--seed", type=_seed, default=0, help="episodes are the layouts of seeds S, S+1, ...")
+    col.add_argument("--dataset-id", required=True, help="Minari id, e.g. hoap_actions/PegInsert/scripted-v0")
+    col.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
+    col.add_argument("--overwrite", action="store_true", help="replace an existing dataset of that id")
+    col.set_defaults(func=_collect)
 
     rec = sub.add_parser("record", help="record simulated human demonstrations to an HDF5 dataset")
     rec.add_argument("--preset", required=True, choices=["paper", "approach-grid", "small"])
