@@ -44,6 +44,13 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _nonnegative_int(text: str) -> int:
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
+    return value
+
+
 def _seed(text: str) -> int:
     value = _integer(text)
     if not 0 <= value <= MAX_SEED:
@@ -76,6 +83,8 @@ def _demo(args: argparse.Namespace) -> int:
     kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {}) for name in names}
     check_seed(args.seed, count=args.episodes)
     last_seed = args.seed + args.episodes - 1
+    if args.film >= args.episodes:
+        raise InvalidInputError(f"--film {args.film} is past the last episode; accepted: 0..{args.episodes - 1}")
     with contextlib.ExitStack() as outputs:  # claimed before the first episode, published at the end
         claim = {
             name: outputs.enter_context(claimed_file(path, args.overwrite, what=name)) if path else None
@@ -83,8 +92,8 @@ def _demo(args: argparse.Namespace) -> int:
         }
         results = compare_policies(args.env, {name: (name, kwargs[name]) for name in names},
                                    range(args.seed, last_seed + 1), workers=args.workers)
-        if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the first one again, filmed
-            film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed,
+        if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the chosen one again, filmed
+            film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed + args.film,
                          classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera)
         summaries = {name: summarise(episodes) for name, episodes in results.items()}
         if claim["report"]:
@@ -100,9 +109,9 @@ def _demo(args: argparse.Namespace) -> int:
         if "perception_error_m" in summary and summary["perception_error_m"]["max"] is not None:
             print(f"  largest perception error of a target peg or hole: {1000 * summary['perception_error_m']['max']:.2f} mm")
     if args.video:
-        print(f"video of the first episode ({names[0]}, camera {args.camera}): {args.video}")
+        print(f"video of episode {args.film} ({names[0]}, seed {args.seed + args.film}, camera {args.camera}): {args.video}")
     if args.snapshot:
-        print(f"picture of the first episode ({names[0]}): {args.snapshot}")
+        print(f"picture of episode {args.film} ({names[0]}, seed {args.seed + args.film}): {args.snapshot}")
     if args.json:
         print(f"results: {args.json}")
     return 0
@@ -194,7 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--episodes", type=_positive_int, default=10)
     demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
     demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
-    demo.add_argument("--video", type=_path, help="write an mp4 of the first policy's first episode here")
+    demo.add_argument("--video", type=_path, help="write an mp4 of one of the first policy's episodes here (--film)")
+    demo.add_argument("--film", type=_nonnegative_int, default=0, metavar="K",
+                      help="which episode --video and --snapshot show: K for seed S+K (default: 0, the first)")
     demo.add_argument("--camera", default="closeup", choices=sorted(CAMERAS), help="the video's camera (default: %(default)s)")
     demo.add_argument("--snapshot", type=_path, help="write a PNG of the first episode here: for the phmm policy the "
                                                       "overhead image with what it located and the paths it synthesised")

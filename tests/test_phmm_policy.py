@@ -130,13 +130,6 @@ def test_models_come_from_a_directory_too(tmp_path):
         env.close()
 
 
-def test_the_cli_refuses_models_without_the_phmm_policy(capsys):
-    from hoap_actions.cli import main
-
-    assert main(["demo", "--policy", "scripted", "--models", "somewhere", "--episodes", "1"]) == 2
-    assert "--models is for the phmm policy" in capsys.readouterr().err
-
-
 @pytest.mark.slow
 def test_the_policy_on_100_unseen_layouts():
     """A regression guard for the held-out figure (benchmarks/policy_comparison.py: 99.0 % on 30000-30199):

@@ -1,0 +1,19 @@
+"""hoap-actions demo: several policies side by side, the models option, the filmed episode."""
+
+from __future__ import annotations
+
+from hoap_actions.cli import main
+
+
+def test_the_cli_refuses_models_without_the_phmm_policy(capsys):
+    assert main(["demo", "--policy", "scripted", "--models", "somewhere", "--episodes", "1"]) == 2
+    assert "--models is for the phmm policy" in capsys.readouterr().err
+
+
+def test_the_cli_films_the_chosen_episode(tmp_path, capsys):
+    assert main(["demo", "--policy", "scripted", "--episodes", "2", "--seed", "1000", "--film", "1",
+                 "--snapshot", str(tmp_path / "s.png")]) == 0
+    assert "picture of episode 1 (scripted, seed 1001)" in capsys.readouterr().out
+    assert (tmp_path / "s.png").is_file()
+    assert main(["demo", "--policy", "scripted", "--episodes", "2", "--film", "2"]) == 2
+    assert "--film 2 is past the last episode" in capsys.readouterr().err
