@@ -1,7 +1,8 @@
 """Environment speed: env steps per second and simulated seconds per wall second, per id.
 
 Each figure is the median of several runs, with and without rendering an ``rgb_array`` frame every
-step, for random actions (the robot often falls: many contacts) and for zero actions (it stands).
+step, for random actions (the robot often falls: many contacts) and for zero actions (it stands);
+and the median time of a ``reset``, which builds the physics world afresh every episode.
 
     python benchmarks/env_speed.py [--runs 5] [--steps 300]
 
@@ -44,6 +45,21 @@ def time_run(env_id: str, render: bool, steps: int, seed: int, actions_kind: str
     return elapsed
 
 
+def time_resets(env_id: str, control_mode: str, n: int) -> float:
+    """Median wall seconds of ``env.reset(seed=s)`` over ``n`` seeds, each after a few steps."""
+    env = gymnasium.make(env_id, control_mode=control_mode)
+    env.reset(seed=0)
+    walls = []
+    for seed in range(n):
+        for _ in range(5):
+            env.step(env.action_space.sample() * 0)
+        start = time.perf_counter()
+        env.reset(seed=seed)
+        walls.append(time.perf_counter() - start)
+    env.close()
+    return statistics.median(walls)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("env_speed.json")])
     parser.add_argument("--runs", type=int, default=5)
@@ -72,7 +88,13 @@ def main(argv: list[str] | None = None) -> dict:
                 f"{row['median_sim_s_per_wall_s']:6.2f} sim s / wall s  "
                 f"({row['median_physics_step_ms']:.3f} ms per physics step incl. overhead)"
             )
-    document = {"results": rows, "environment": numeric_environment(blas_threads=None)}
+    resets = []
+    for env_id in hoap_actions.ENV_IDS:
+        for control_mode in ("joint_delta", "ee_delta"):
+            median = time_resets(env_id, control_mode, 5 * args.runs)
+            resets.append({"env_id": env_id, "control_mode": control_mode, "median_reset_ms": 1e3 * median})
+            print(f"{env_id:28s} {control_mode:11s} reset {1e3 * median:6.1f} ms (median of {5 * args.runs})")
+    document = {"results": rows, "resets": resets, "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
     print(f"wrote {args.output}")
     return document
