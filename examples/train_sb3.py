@@ -28,13 +28,13 @@ import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
 EVAL_SEEDS = range(50000, 50050)  # held-out layouts, declared before the first run
 
 
-def evaluate(model, env_id: str, control_mode: str) -> dict:
+def evaluate(model, env_id: str, control_mode: str, normalize=lambda obs: obs) -> dict:
     env = gymnasium.make(env_id, control_mode=control_mode)
     successes = falls = 0
     for seed in EVAL_SEEDS:
         obs, info = env.reset(seed=seed)
         while True:
-            action, _ = model.predict(obs, deterministic=True)
+            action, _ = model.predict(normalize(obs), deterministic=True)
             obs, reward, terminated, truncated, info = env.step(action)
             if terminated or truncated:
                 break
@@ -51,15 +51,25 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=10000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path)
+    parser.add_argument("--normalize", action="store_true",
+                        help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
     try:
         from stable_baselines3 import SAC, HerReplayBuffer
         from stable_baselines3.common.env_util import make_vec_env
+        from stable_baselines3.common.vec_env import VecNormalize
     except ImportError:
         raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
 
     control_mode = "ee_delta"
     venv = make_vec_env(args.env, n_envs=1, seed=args.seed, env_kwargs={"control_mode": control_mode})
+    normalize = lambda obs: obs  # noqa: E731
+    if args.normalize:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
+
+        def normalize(obs):
+            venv.training = False
+            return venv.normalize_obs(obs)
     model = SAC("MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer,
                 replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
                 learning_starts=1000, learning_rate=1e-3, gamma=0.95, tau=0.05, batch_size=256,
@@ -68,14 +78,17 @@ def main() -> None:
     for _ in range(0, args.steps, args.eval_every):
         model.learn(args.eval_every, reset_num_timesteps=False)
         point = {"steps": int(model.num_timesteps), "train_wall_s": time.perf_counter() - start,
-                 **evaluate(model, args.env, control_mode)}
+                 **evaluate(model, args.env, control_mode, normalize)}
         curve.append(point)
+        if args.normalize:
+            venv.training = True  # the statistics were frozen for the evaluation
         print(f"{point['steps']:6d} steps, {point['train_wall_s'] / 60:5.1f} min: success {point['success_rate']:.0%} "
               f"on {point['episodes']} held-out layouts, falls {point['falls']}", flush=True)
     venv.close()
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"env": args.env, "control_mode": control_mode, "algorithm": "SAC + HER",
+                                         "normalize": args.normalize,
                                          "eval_seeds": [EVAL_SEEDS.start, EVAL_SEEDS.stop], "curve": curve}, indent=2))
 
 
