@@ -57,7 +57,7 @@ from hoap_actions.errors import ExtrapolationWarning, InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.discovery import APPROACH, MANIPULATION, REMOVE
 
-__all__ = ["CARRY_CLEARANCE", "PHMMPaths", "SceneMap", "carry_action", "warp"]
+__all__ = ["CARRY_CLEARANCE", "PHMMPaths", "SceneMap", "carry_action", "resample", "warp"]
 
 CARRY_CLEARANCE = 0.01  # m, how far the learned carry's lift takes a held peg's bottom over the board's top
 SMOOTHING_S = 0.05  # s, standard deviation of the Gaussian that rounds the interpolated state means
@@ -115,6 +115,13 @@ def over_the_table(path: np.ndarray, first: bool) -> np.ndarray:
     if first:
         return path[int(np.argmax(above)):]
     return path[: len(path) - int(np.argmax(above[::-1]))]
+
+
+def resample(path: np.ndarray, spacing: float, min_points: int = 2) -> np.ndarray:
+    """``path`` (T, n) resampled at equal steps of arc length no longer than ``spacing``."""
+    travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
+    s = np.linspace(0.0, travelled[-1], max(min_points, int(np.ceil(travelled[-1] / spacing)) + 1))
+    return np.stack([np.interp(s, travelled, path[:, i]) for i in range(path.shape[1])], axis=1)
 
 
 def warp(path: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -189,11 +196,9 @@ class PHMMPaths:
         """The path retimed under the hand's limits, one point (3,) per env step, ending at rest.
         It is first resampled every :data:`RESAMPLE_SPACING` of arc length: millimetre wiggles
         where the state means crowd would otherwise set a crawling pace for the whole path."""
-        travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
-        if travelled[-1] <= 0.0:
+        if np.allclose(path, path[-1]):
             return np.asarray(path[-1:], dtype=float)
-        s = np.linspace(0.0, travelled[-1], max(4, int(np.ceil(travelled[-1] / RESAMPLE_SPACING)) + 1))
-        points = np.stack([np.interp(s, travelled, path[:, i]) for i in range(3)], axis=1)
+        points = resample(path, RESAMPLE_SPACING, min_points=4)
         limits = limits or self.limits
         v, a, j = limits.velocity, limits.acceleration, limits.jerk
         return np.asarray(retime_path(points, v, a, j, dt=self.dt).position)

@@ -33,7 +33,7 @@ from hoap_actions.controllers.hand_control import HandLimits
 from hoap_actions.controllers.execution import GraspAndInsert, Leg, Phase, WorldEstimate
 from hoap_actions.controllers.figures import draw_episode
 from hoap_actions.controllers.perception import Detections, locate
-from hoap_actions.controllers.phmm_paths import PHMMPaths
+from hoap_actions.controllers.phmm_paths import PHMMPaths, resample
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.primitives.action_models import ActionModels
 
@@ -142,13 +142,8 @@ class PHMMPolicy(GraspAndInsert):
         the synthesised path (densely resampled polyline)."""
         deviations = {}
         for name, executed in self.executed.items():
-            path = _resample(self.synthesised[name], 0.0005)
+            path = resample(self.synthesised[name], 0.0005)
             hand = np.asarray(executed)
             deviations[name] = float(np.max(np.min(np.linalg.norm(hand[:, None] - path[None], axis=2), axis=1)))
         return deviations
 
-
-def _resample(path: np.ndarray, spacing: float) -> np.ndarray:
-    travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
-    s = np.linspace(0.0, travelled[-1], max(2, int(np.ceil(travelled[-1] / spacing)) + 1))
-    return np.stack([np.interp(s, travelled, path[:, i]) for i in range(path.shape[1])], axis=1)

@@ -80,6 +80,10 @@ def _demo(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"policies {names} act through different control modes; run them separately")
     if args.models is not None and "phmm" not in names:
         raise InvalidInputError("--models is for the phmm policy; add --policy phmm or leave --models out")
+    if args.models is not None:  # read once here: a bad directory is one line, not a broken worker pool
+        from hoap_actions.primitives.action_models import ActionModels
+
+        ActionModels.load(args.models)
     kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {}) for name in names}
     check_seed(args.seed, count=args.episodes)
     last_seed = args.seed + args.episodes - 1

@@ -17,3 +17,9 @@ def test_the_cli_films_the_chosen_episode(tmp_path, capsys):
     assert (tmp_path / "s.png").is_file()
     assert main(["demo", "--policy", "scripted", "--episodes", "2", "--film", "2"]) == 2
     assert "--film 2 is past the last episode" in capsys.readouterr().err
+
+
+def test_a_missing_models_directory_is_one_line_before_any_worker_starts(tmp_path, capsys):
+    assert main(["demo", "--policy", "phmm", "--models", str(tmp_path / "none"), "--episodes", "2",
+                 "--workers", "2"]) == 2
+    assert "no models directory" in capsys.readouterr().err
