@@ -1,19 +1,23 @@
 """Parametric HMMs (Wilson & Bobick 1999) for action primitives whose shape depends on their effect phi.
 
-Each state's Gaussian mean is linear in the effect, ``mu_j(phi) = mean_bar_j + W_j phi``; covariances
+Each state's Gaussian mean depends on the effect, linearly, ``mu_j(phi) = mean_bar_j + W_j phi``
+(``mean_model="linear"``, the paper's model), or with a smooth bend added,
+``mu_j(phi) = mean_bar_j + W_j phi + V_j g(phi)`` with fixed thin-plate-spline features ``g``
+(``mean_model="tps"``, :mod:`~hoap_actions.primitives.effect_features`) and a ridge on ``V_j``; covariances
 and transitions are shared by all effects.  One model is trained per primitive class from its
 demonstrations and their effects; it then synthesises a prototype movement for a desired effect
 (left-right models, as in the paper), scores a movement, estimates the effect that best explains a
 movement, and recognises which class a movement belongs to.
 
-File format of :meth:`ParametricHMM.save` (``format_version`` 2; version 1 files, written before the
-covariance prior existed, load as models without one), an uncompressed ``.npz`` archive
+File format of :meth:`ParametricHMM.save` (``format_version`` 3; version 1 files, written before the
+covariance prior existed, load as models without one; version 1 and 2 files, written before the mean
+model could bend, load as linear models), an uncompressed ``.npz`` archive
 readable with ``numpy.load(path, allow_pickle=False)``; every entry is a plain numeric or unicode array:
 
 =======================  ===================  ===============================================================
 key                      shape                meaning
 =======================  ===================  ===============================================================
-format_version           () int               2
+format_version           () int               3
 kind                     () str               "ParametricHMM"
 n_states, n_iter         () int               hyper-parameters as given to ``__init__``
 topology                 () str               "left-right", "left-right-skip" or "ergodic"
@@ -21,11 +25,17 @@ covariance_type          () str               "full" or "diag"
 tol, reg_covar           () float             hyper-parameters
 covars_prior             (0,) or (D,)         prior variances (empty: no prior)
 covars_weight            () float             the prior's weight in frames per state
+mean_model               () str               "linear" or "tps" (version 3)
+smoothing                () float             ridge on V (version 3)
+max_centres              () int               most thin-plate centres (version 3)
 random_state             (0,) or (1,) int     the seed; empty when it was not an int (None or a Generator)
 startprob_               (K,)                 initial state distribution
 transmat_                (K, K)               transition matrix (rows sum to 1)
 mean_bar_                (K, D)               state means at phi = 0
 W_                       (K, D, p)            effect-to-mean matrices
+V_                       (K, D, m)            feature-to-mean matrices (m = 0: linear; version 3)
+feature_centres_         (m, p)               thin-plate centres in the unit box of the training range (v3)
+feature_low_, _span_     (p,)                 that box: q = (phi - low) / span (version 3)
 covars_                  (K, D, D) or (K, D)  covariances ("full") or variances ("diag")
 train_params_            (S, p), S >= 1       effects phi of the training sequences (attribute ``train_phi_``:
                                               restarts of estimate_phi; synthesize warns far outside their range)
@@ -41,10 +51,9 @@ moves right (by one state, or two with skips), and covariances are symmetric pos
 from __future__ import annotations
 
 import logging
-import math
 import warnings
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,6 +68,7 @@ from hoap_actions.errors import (
 )
 from hoap_actions.outputs import claimed_file
 from hoap_actions.primitives.base import Estimator, check_is_fitted
+from hoap_actions.primitives.effect_features import ThinPlateFeatures, distinct_effects
 from hoap_actions.primitives.hmm_math import (
     forward_backward_padded,
     log_gaussian_density_padded,
@@ -70,15 +80,19 @@ from hoap_actions.primitives.hmm_math import (
     viterbi,
 )
 
-__all__ = ["EMReport", "NStatesSelection", "ParametricHMM", "Recognition", "recognize", "select_n_states"]
+__all__ = ["EMReport", "ParametricHMM", "Recognition", "recognize"]
 
 logger = logging.getLogger(__name__)
 
 EM_FALL_WARNING = 1e-3  # fraction of the objective by which an EM iteration may fall before it warns
 
-FORMAT_VERSION = 2
-_READABLE_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+_READABLE_VERSIONS = (1, 2, 3)
 _TOPOLOGIES = ("left-right", "left-right-skip", "ergodic")
+_MEAN_MODELS = ("linear", "tps")
+# Effect estimation with a bending mean: Gauss-Newton steps inside EM, each halved until the expected
+# log-likelihood does not fall (a generalised EM step); after this many halvings phi stays where it was.
+_MAX_STEP_HALVINGS = 20
 # Share of a left-right-skip chain's initial moves that skip a state: EM only rescales transitions it
 # starts with, so skips must start non-zero; the training data then decide how often they are taken.
 _SKIP_SHARE = 1.0 / 3.0
@@ -96,7 +110,7 @@ _ATTRIBUTE_OF_ENTRY = {"train_params_": "train_phi_"}
 _PROBABILITY_TOLERANCE = 1e-6  # |sum - 1| of a saved distribution; EM's normalisation errs by ~1e-16
 _SYMMETRY_TOLERANCE = 1e-8  # largest |S - S^T| relative to the largest |S| (EM's covariances are exactly symmetric)
 # synthesize warns (ExtrapolationWarning) when a component of phi lies beyond the training effects'
-# range widened by this fraction of its span at each end: the linear mean model is only checked
+# range widened by this fraction of its span at each end: the mean model is only checked
 # against data inside the range, and a little beyond it is routine (a grid's edge, a held-out effect).
 EXTRAPOLATION_MARGIN = 0.5
 # Relative ridge on the effect block of each state's regression: only matters when a state's
@@ -123,14 +137,6 @@ class Recognition:
     phis: Mapping[int, np.ndarray] = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
-class NStatesSelection:
-    """Result of :func:`select_n_states`: the chosen state count and the held-out log-likelihood per frame of each."""
-
-    n_states: int
-    scores: Mapping[int, float]
-
-
 @dataclass
 class _Batch:
     """Sequences padded once: frames (S, T, D) centred on ``offset``, their second moments, effects (S, p)."""
@@ -149,7 +155,7 @@ class _Batch:
 
 
 class ParametricHMM(Estimator):
-    """Gaussian HMM whose state means are linear in an effect parameter phi (linear PHMM).
+    """Gaussian HMM whose state means depend on an effect parameter phi (linearly, or with a smooth bend).
 
     Parameters
     ----------
@@ -178,11 +184,26 @@ class ParametricHMM(Estimator):
         ``log_likelihood_history_`` records.
     random_state:
         Seed or Generator for the random restarts of :meth:`estimate_phi`.
+    mean_model:
+        ``"linear"``: ``mu_j(phi) = mean_bar_j + W_j phi`` (Wilson & Bobick's linear PHMM);
+        ``"tps"``: plus ``V_j g(phi)``, a thin-plate spline in phi with centres at the distinct
+        training effects, for movements whose shape is not affine in the effect (an arm reaching
+        over a wide region changes its elbow strategy across it). The M-step stays closed form.
+    smoothing:
+        ``lambda >= 0``: the penalty ``lambda/2 sum_j tr(V_j^T Sigma_j^-1 V_j)`` added to the EM
+        objective (a ridge on the bend, in each state's own metric; lambda is worth that many frames
+        pulling V towards 0). 0 interpolates the training effects exactly, which needs at least
+        ``p + 1 + m`` distinct effects for m centres. Choose it (and the mean model) by
+        :func:`~hoap_actions.primitives.phmm_selection.select_mean_model`.
+    max_centres:
+        Most thin-plate centres (``"tps"``); more distinct training effects are thinned to an even cover.
 
     Attributes (after ``fit`` or ``load``)
     --------------------------------------
-    startprob_, transmat_, mean_bar_, W_, covars_:
-        The learned HMM (module docstring); ``mu_j(phi) = mean_bar_[j] + W_[j] @ phi``.
+    startprob_, transmat_, mean_bar_, W_, V_, covars_:
+        The learned HMM (module docstring); ``mu_j(phi) = mean_bar_[j] + W_[j] @ phi + V_[j] @ g(phi)``.
+    effect_features_:
+        ``g``, a :class:`~hoap_actions.primitives.effect_features.ThinPlateFeatures` (no features for "linear").
     train_phi_:
         ``(S, p)``: the effects of the training sequences.
     n_features_in_, phi_dim_:
@@ -191,7 +212,8 @@ class ParametricHMM(Estimator):
         Training log-likelihood per EM iteration, and an :class:`EMReport`.
     """
 
-    _learned = ("startprob_", "transmat_", "mean_bar_", "W_", "covars_", "train_phi_", "n_features_in_", "phi_dim_")
+    _learned = ("startprob_", "transmat_", "mean_bar_", "W_", "V_", "effect_features_", "covars_", "train_phi_",
+                "n_features_in_", "phi_dim_")
     _file_kind = "ParametricHMM"
     _format_version = FORMAT_VERSION
     _readable_versions = _READABLE_VERSIONS
@@ -199,7 +221,8 @@ class ParametricHMM(Estimator):
     def __init__(self, n_states: int = 10, topology: str = "left-right", covariance_type: str = "full",
                  n_iter: int = 50, tol: float = 1e-4, reg_covar: float = 1e-6,
                  random_state: int | np.random.Generator | None = None, covars_prior=None,
-                 covars_weight: float = 1.0) -> None:
+                 covars_weight: float = 1.0, mean_model: str = "linear", smoothing: float = 1.0,
+                 max_centres: int = 64) -> None:
         self.n_states = n_states
         self.topology = topology
         self.covariance_type = covariance_type
@@ -209,6 +232,9 @@ class ParametricHMM(Estimator):
         self.random_state = random_state
         self.covars_prior = covars_prior
         self.covars_weight = covars_weight
+        self.mean_model = mean_model
+        self.smoothing = smoothing
+        self.max_centres = max_centres
 
     # ------------------------------------------------------------------------------- checks
     def _check_hyper_parameters(self) -> None:
@@ -226,6 +252,12 @@ class ParametricHMM(Estimator):
             raise InvalidInputError(f"reg_covar must be a finite float >= 0; got {self.reg_covar!r}")
         if not (_is_real(self.covars_weight) and self.covars_weight >= 0):
             raise InvalidInputError(f"covars_weight must be a finite float >= 0; got {self.covars_weight!r}")
+        if self.mean_model not in _MEAN_MODELS:
+            raise InvalidInputError(f"mean_model must be one of {_MEAN_MODELS}; got {self.mean_model!r}")
+        if not (_is_real(self.smoothing) and self.smoothing >= 0):
+            raise InvalidInputError(f"smoothing must be a finite float >= 0; got {self.smoothing!r}")
+        if not _is_int(self.max_centres) or self.max_centres < 1:
+            raise InvalidInputError(f"max_centres must be an int >= 1; got {self.max_centres!r}")
 
     def _prior_variances(self, n_features: int) -> np.ndarray | None:
         """``covars_prior`` as a checked (D,) float array, or None without a prior."""
@@ -288,7 +320,8 @@ class ParametricHMM(Estimator):
 
     def _means_at(self, phi: np.ndarray, offset: np.ndarray) -> np.ndarray:
         """State means for each effect: ``(S, K, D)`` from ``phi`` of shape ``(S, p)``, minus ``offset``."""
-        return (self.mean_bar_ - offset)[None] + np.einsum("kdp,sp->skd", self.W_, phi)
+        bend = np.einsum("kdm,sm->skd", self.V_, self.effect_features_.transform(phi))
+        return (self.mean_bar_ - offset)[None] + np.einsum("kdp,sp->skd", self.W_, phi) + bend
 
     def _e_step(self, batch: _Batch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-sequence log-likelihoods, padded posteriors (S, T, K) and expected transition counts (K, K)."""
@@ -299,13 +332,18 @@ class ParametricHMM(Estimator):
                                            batch.lengths, self._log_end())
 
     def _m_step(self, batch: _Batch, gamma: np.ndarray, xi: np.ndarray) -> None:
-        """Closed-form maximisation: per-state weighted regression of frames on [phi; 1], then covariances.
+        """Closed-form maximisation: per-state weighted regression of frames on [phi; g(phi); 1] (a ridge
+        ``smoothing`` on the g block), then covariances.
 
-        Effects are centred for conditioning (W is unchanged by it); frames are centred on ``batch.offset``.
+        Effects and features are centred for conditioning (W and V are unchanged by it); frames are
+        centred on ``batch.offset``. The penalty's minimiser Z does not depend on the covariance, so
+        ``Z`` and then ``Sigma = (scatter + lambda V V^T) / N`` maximise the penalised objective jointly.
         """
         k, d = self.n_states, batch.X.shape[2]
-        phi_centre = batch.phi.mean(axis=0)
-        omega = np.hstack([batch.phi - phi_centre, np.ones((batch.phi.shape[0], 1))])
+        p, m = batch.phi.shape[1], self.effect_features_.n_features
+        g = self.effect_features_.transform(batch.phi)
+        phi_centre, g_centre = batch.phi.mean(axis=0), g.mean(axis=0)
+        omega = np.hstack([batch.phi - phi_centre, g - g_centre, np.ones((batch.phi.shape[0], 1))])
         q = omega.shape[1]
         occ = gamma.sum(axis=1)                                        # (S, K)
         occ_x = np.matmul(gamma.transpose(0, 2, 1), batch.X)           # (S, K, D)
@@ -316,13 +354,18 @@ class ParametricHMM(Estimator):
         gram[~visited] = np.eye(q)
         ridge = _RIDGE * np.trace(gram, axis1=1, axis2=2) / q
         gram[:, np.arange(q - 1), np.arange(q - 1)] += ridge[:, None]
-        z = np.linalg.solve(gram, num.transpose(0, 2, 1)).transpose(0, 2, 1)  # (K, D, q) = [W | mu_bar_c]
+        penalty = np.zeros(q)
+        penalty[p:p + m] = float(self.smoothing)
+        gram += np.diag(penalty)
+        z = np.linalg.solve(gram, num.transpose(0, 2, 1)).transpose(0, 2, 1)  # (K, D, q) = [W | V | mu_bar_c]
+        bend = z[:, :, p:p + m]
 
         # sum_t gamma (x - Z w)(x - Z w)^T = Sxx - N Z^T - Z N^T + Z G Z^T, per state.
         cross = np.matmul(num, z.transpose(0, 2, 1))
         fit = np.matmul(np.matmul(z, gram), z.transpose(0, 2, 1))
         sxx = unpack_second_moments(gamma.reshape(-1, k).T @ batch.moments.reshape(gamma[..., 0].size, -1),
                                     self.covariance_type)
+        # fit includes Z diag(penalty) Z^T = lambda V V^T: the penalty's share of the covariance.
         if self.covariance_type == "full":
             scatter = sxx - cross - cross.transpose(0, 2, 1) + fit
             scatter = 0.5 * (scatter + scatter.transpose(0, 2, 1))
@@ -340,8 +383,10 @@ class ParametricHMM(Estimator):
             covars = np.maximum(covars, 0.0) + self.reg_covar
 
         # Unvisited states (ergodic models only) keep their parameters.
-        self.W_ = np.where(visited[:, None, None], z[:, :, :-1], getattr(self, "W_", z[:, :, :-1]))
-        mean_c = z[:, :, -1] + batch.offset - z[:, :, :-1] @ phi_centre
+        # contiguous, as a loaded model's are: a fitted and a reloaded model then compute bit for bit alike
+        self.W_ = np.ascontiguousarray(np.where(visited[:, None, None], z[:, :, :p], getattr(self, "W_", z[:, :, :p])))
+        self.V_ = np.ascontiguousarray(np.where(visited[:, None, None], bend, getattr(self, "V_", bend)))
+        mean_c = z[:, :, -1] + batch.offset - z[:, :, :p] @ phi_centre - bend @ g_centre
         self.mean_bar_ = np.where(visited[:, None], mean_c, getattr(self, "mean_bar_", mean_c))
         self.covars_ = np.where(visited.reshape((-1,) + (1,) * (covars.ndim - 1)), covars,
                                 getattr(self, "covars_", covars))
@@ -365,7 +410,7 @@ class ParametricHMM(Estimator):
         """
         self._check_hyper_parameters()
         X, lengths = validate_sequences(X, lengths)
-        phi = _check_train_phi(phi, lengths.size)
+        phi = check_train_phi(phi, lengths.size)
         k = int(self.n_states)
         if self._left_right and lengths.min() < k:
             short = np.flatnonzero(lengths < k)
@@ -373,8 +418,9 @@ class ParametricHMM(Estimator):
                                     f"shorter than the {k}-state left-right chain; every sequence needs >= n_states "
                                     "frames (use fewer states or drop the short sequences)")
         self._prior = self._prior_variances(X.shape[1])
+        self.effect_features_ = self._effect_features(phi)
         batch = _Batch.build(X, lengths, phi, X.mean(axis=0), self.covariance_type)
-        for name in ("W_", "mean_bar_", "covars_", "transmat_", "startprob_"):
+        for name in ("W_", "V_", "mean_bar_", "covars_", "transmat_", "startprob_"):
             self.__dict__.pop(name, None)
         self.n_features_in_ = X.shape[1]
         self.phi_dim_ = phi.shape[1]
@@ -395,6 +441,21 @@ class ParametricHMM(Estimator):
             self.startprob_ = first / first.sum()
         self._fit_em(batch, gamma, xi)
         return self
+
+    def _effect_features(self, phi: np.ndarray) -> ThinPlateFeatures:
+        """``g`` for the training effects ``phi`` (S, p); IdentifiabilityError if an unpenalised bend
+        has more coefficients than the distinct effects can pin down."""
+        p = phi.shape[1]
+        if self.mean_model == "linear" or p == 0:
+            return ThinPlateFeatures.none(p)
+        features = ThinPlateFeatures.from_effects(phi, int(self.max_centres))
+        n_distinct = distinct_effects((phi - features.low) / features.span).shape[0]
+        if self.smoothing == 0 and n_distinct < p + 1 + features.n_features:
+            raise IdentifiabilityError(
+                f"mean_model='tps' with smoothing=0 has {p + 1 + features.n_features} coefficients per state (1 + p = "
+                f"{p + 1} affine, {features.n_features} thin-plate centres) but the training effects hold only "
+                f"{n_distinct} distinct values; give smoothing > 0, or max_centres <= {max(n_distinct - p - 1, 0)}")
+        return features
 
     def _fit_em(self, batch: _Batch, gamma: np.ndarray, xi: np.ndarray) -> None:
         self._m_step(batch, gamma, xi)
@@ -427,16 +488,23 @@ class ParametricHMM(Estimator):
         self.monitor_ = EMReport(tuple(history), converged, len(history))
 
     def _log_prior(self) -> float:
-        """Log-density (up to a constant) of the covariances under the prior: the part of the EM objective
-        besides the log-likelihood, ``-w/2 sum_j (tr(diag(prior) S_j^-1) + log det S_j)``; 0 without one."""
+        """The part of the EM objective besides the log-likelihood: the covariances' log-density (up to a
+        constant) under the prior, ``-w/2 sum_j (tr(diag(prior) S_j^-1) + log det S_j)``, and the ridge
+        on the bend, ``-lambda/2 sum_j tr(V_j^T S_j^-1 V_j)``; 0 for neither."""
+        total = 0.0
+        if self.V_.shape[2] and self.smoothing > 0:
+            if self.covariance_type == "full":
+                total -= 0.5 * self.smoothing * float(np.sum(self.V_ * np.linalg.solve(self.covars_, self.V_)))
+            else:
+                total -= 0.5 * self.smoothing * float(np.sum(self.V_**2 / self.covars_[:, :, None]))
         if self._prior is None:
-            return 0.0
+            return total
         if self.covariance_type == "full":
             inverse_diagonal = np.diagonal(np.linalg.inv(self.covars_), axis1=1, axis2=2)
             log_det = np.linalg.slogdet(self.covars_)[1]
         else:
             inverse_diagonal, log_det = 1.0 / self.covars_, np.log(self.covars_).sum(axis=1)
-        return float(-0.5 * self.covars_weight * np.sum(inverse_diagonal @ self._prior + log_det))
+        return total + float(-0.5 * self.covars_weight * np.sum(inverse_diagonal @ self._prior + log_det))
 
     # ----------------------------------------------------------------------------- inference
     def score(self, X, phi) -> float:
@@ -468,8 +536,11 @@ class ParametricHMM(Estimator):
         """The effect phi (p,) that maximises the likelihood of one sequence ``X`` (T, D), by EM.
 
         Starts from the mean training effect and ``n_restarts - 1`` random training effects, all run
-        together as one batch; each M-step is the closed-form
-        ``phi = (sum_tj g_tj W_j^T S_j^-1 W_j)^-1 sum_tj g_tj W_j^T S_j^-1 (x_t - mean_bar_j)``.
+        together as one batch. For the linear mean model each M-step is the closed form
+        ``phi = (sum_tj g_tj W_j^T S_j^-1 W_j)^-1 sum_tj g_tj W_j^T S_j^-1 (x_t - mean_bar_j)``; for a
+        bending mean it is one Gauss-Newton step with the Jacobian ``W_j + V_j dg/dphi``, halved until
+        the expected log-likelihood does not fall (generalised EM: the likelihood still never falls),
+        which is why several starts matter there.
         """
         return self._estimate(X, n_restarts, n_iter, tol)[0]
 
@@ -499,7 +570,10 @@ class ParametricHMM(Estimator):
         return batch.phi[best].copy(), float(ll[best])
 
     def _phi_update(self, batch: _Batch, gamma: np.ndarray) -> np.ndarray:
-        """Closed-form maximiser over phi of the expected complete log-likelihood, one phi per sequence."""
+        """A phi per sequence that raises the expected complete log-likelihood: its maximiser (linear
+        means) or a damped Gauss-Newton step towards it (bending means)."""
+        if self.V_.shape[2]:
+            return self._phi_gauss_newton(batch, gamma)
         prec, _ = precision_cholesky(self.covars_, self.covariance_type)
         pw = np.matmul(prec, self.W_)                                          # (K, D, p): P_j W_j
         pm = np.einsum("kij,kj->ki", prec, self.mean_bar_ - batch.offset)      # (K, D):    P_j mu_bar_j
@@ -513,6 +587,38 @@ class ParametricHMM(Estimator):
         except np.linalg.LinAlgError as exc:
             raise IdentifiabilityError("phi is not identifiable from this sequence under this model "
                                        "(sum_j W_j^T S_j^-1 W_j is singular)") from exc
+
+    def _phi_gauss_newton(self, batch: _Batch, gamma: np.ndarray) -> np.ndarray:
+        """One Gauss-Newton step on ``Q(phi) = sum_tj g_tj log N(x_t; mu_j(phi), S_j)`` per sequence, halved
+        (per sequence) until Q does not fall; whitened by ``P_j`` with ``P_j^T P_j = S_j^-1``."""
+        prec, _ = precision_cholesky(self.covars_, self.covariance_type)
+        occ = gamma.sum(axis=1)                                                # (S, K)
+        white_x = np.einsum("kij,skj->ski", prec, np.matmul(gamma.transpose(0, 2, 1), batch.X))  # P_j sum_t g x_t
+
+        def expected(phi: np.ndarray) -> np.ndarray:
+            white_mu = np.einsum("kij,skj->ski", prec, self._means_at(phi, batch.offset))
+            return np.einsum("skd,skd->s", white_mu, white_x - 0.5 * occ[:, :, None] * white_mu)
+
+        phi = batch.phi
+        jac = self.W_[None] + np.einsum("kdm,smp->skdp", self.V_, self.effect_features_.jacobian(phi))
+        white_jac = np.einsum("kij,skjp->skip", prec, jac)                     # (S, K, D, p)
+        white_mu = np.einsum("kij,skj->ski", prec, self._means_at(phi, batch.offset))
+        lhs = np.einsum("sk,skdp,skdq->spq", occ, white_jac, white_jac)
+        rhs = np.einsum("skdp,skd->sp", white_jac, white_x - occ[:, :, None] * white_mu)
+        try:
+            step = np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError as exc:
+            raise IdentifiabilityError("phi is not identifiable from this sequence under this model (the "
+                                       "Gauss-Newton matrix sum_j J_j^T S_j^-1 J_j is singular)") from exc
+        before, share = expected(phi), np.ones(phi.shape[0])
+        for _ in range(_MAX_STEP_HALVINGS):
+            worse = expected(phi + share[:, None] * step) < before
+            if not worse.any():
+                break
+            share = np.where(worse, 0.5 * share, share)
+        else:
+            share = np.where(expected(phi + share[:, None] * step) < before, 0.0, share)
+        return phi + share[:, None] * step
 
     # ----------------------------------------------------------------------------- synthesis
     def synthesize(self, phi, n_frames: int | None = None) -> np.ndarray:
@@ -535,6 +641,8 @@ class ParametricHMM(Estimator):
         if n_frames is not None and (not _is_int(n_frames) or n_frames < 1):
             raise InvalidInputError(f"n_frames must be None or an int >= 1; got {n_frames!r}")
         means = self.mean_bar_ + self.W_ @ phi                                   # (K, D)
+        if self.V_.shape[2]:
+            means = means + self.V_ @ self.effect_features_.transform(phi)[0]
         stay = np.clip(np.diagonal(self.transmat_)[:-1], 0.0, 1.0 - 1e-12)
         anchors = np.concatenate([[0.0], np.cumsum(self._visit_probabilities()[:-1] / (1.0 - stay))])
         if n_frames is None:
@@ -553,7 +661,8 @@ class ParametricHMM(Estimator):
             ranges = "; ".join(f"phi[{i}] = {phi[i]:.4g}, trained on [{low[i]:.4g}, {high[i]:.4g}]" for i in far)
             warnings.warn(f"phi is far outside the training effects ({ranges}): beyond each range widened by "
                           f"{EXTRAPOLATION_MARGIN:g} of its span at either end, the synthesised movement is an "
-                          "unchecked extrapolation of the linear mean model", ExtrapolationWarning, stacklevel=3)
+                          f"unchecked extrapolation of the {self.mean_model} mean model (a bending mean strays "
+                          "further than a linear one)", ExtrapolationWarning, stacklevel=3)
 
     def _visit_probabilities(self) -> np.ndarray:
         """Probability that a left-right chain passes through each state (1 for all without skips)."""
@@ -582,10 +691,17 @@ class ParametricHMM(Estimator):
             "random_state": np.array([int(seed)] if isinstance(seed, (int, np.integer)) else [], dtype=np.int64),
             "covars_prior": np.zeros(0) if self.covars_prior is None else np.asarray(self.covars_prior, dtype=float),
             "covars_weight": np.array(float(self.covars_weight)),
+            "mean_model": np.array(str(self.mean_model)),
+            "smoothing": np.array(float(self.smoothing)),
+            "max_centres": np.array(int(self.max_centres)),
             "startprob_": self.startprob_,
             "transmat_": self.transmat_,
             "mean_bar_": self.mean_bar_,
             "W_": self.W_,
+            "V_": self.V_,
+            "feature_centres_": self.effect_features_.centres,
+            "feature_low_": self.effect_features_.low,
+            "feature_span_": self.effect_features_.span,
             "covars_": self.covars_,
             "train_params_": self.train_phi_,
             "log_likelihood_history_": getattr(self, "log_likelihood_history_", np.zeros(0)),
@@ -622,6 +738,10 @@ class ParametricHMM(Estimator):
                 prior = np.asarray(arrays["covars_prior"], dtype=np.float64)
                 model.covars_prior = prior if prior.size else None
                 model.covars_weight = float(arrays["covars_weight"])
+            if version >= 3:
+                model.mean_model = str(arrays["mean_model"])
+                model.smoothing = float(arrays["smoothing"])
+                model.max_centres = int(arrays["max_centres"])
             model._check_hyper_parameters()
             k = model.n_states
             mean_bar = _entry(arrays, "mean_bar_", 2, path)
@@ -641,10 +761,20 @@ class ParametricHMM(Estimator):
                 "covars_": (_entry(arrays, "covars_", len(cov_shape), path), cov_shape),
                 "train_params_": (train, (train.shape[0], p)),
             }
+            if version >= 3:
+                bend = _entry(arrays, "V_", 3, path)
+                m = bend.shape[2]
+                learned["V_"] = (bend, (k, d, m))
+                learned["feature_centres_"] = (_entry(arrays, "feature_centres_", 2, path), (m, p))
+                learned["feature_low_"] = (_entry(arrays, "feature_low_", 1, path), (p,))
+                learned["feature_span_"] = (_entry(arrays, "feature_span_", 1, path), (p,))
+            else:
+                learned["V_"] = (np.zeros((k, d, 0)), (k, d, 0))
             for name, (value, shape) in learned.items():
                 if value.shape != shape or not np.all(np.isfinite(value)):
                     raise DataFileError(f"{path}: entry {name} has shape {value.shape}, expected {shape} and finite")
                 setattr(model, _ATTRIBUTE_OF_ENTRY.get(name, name), value)
+            model.effect_features_ = _features_from_entries(model, path)
             model._check_learned_meaning(path)
             history = _entry(arrays, "log_likelihood_history_", 1, path)
             converged = bool(arrays["converged_"])
@@ -754,6 +884,24 @@ def _entry(arrays: Mapping[str, np.ndarray], name: str, ndim: int, path: Path) -
     return value.astype(np.float64)
 
 
+def _features_from_entries(model: ParametricHMM, path: Path) -> ThinPlateFeatures:
+    """The thin-plate features a loaded model's entries describe (none for linear models and old files),
+    or DataFileError if they contradict its mean model or are not usable features."""
+    p, m = model.W_.shape[2], model.V_.shape[2]
+    if not hasattr(model, "feature_centres_"):
+        return ThinPlateFeatures.none(p)
+    features = ThinPlateFeatures(model.__dict__.pop("feature_centres_"), model.__dict__.pop("feature_low_"),
+                                 model.__dict__.pop("feature_span_"))
+    if (model.mean_model == "linear") != (m == 0):
+        raise DataFileError(f"{path}: entry V_ has {m} feature column(s) but mean_model is {model.mean_model!r}; "
+                            "accepted: none for 'linear', one per thin-plate centre for 'tps'")
+    try:
+        features.check(p)
+    except InvalidInputError as exc:
+        raise DataFileError(f"{path}: entries feature_centres_/feature_low_/feature_span_ are malformed ({exc})") from exc
+    return features
+
+
 def _is_int(value) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
@@ -763,7 +911,7 @@ def _is_real(value) -> bool:
         and bool(np.isfinite(value))
 
 
-def _check_train_phi(train_phi, n_sequences: int) -> np.ndarray:
+def check_train_phi(train_phi, n_sequences: int) -> np.ndarray:
     """Training effects as float (S, p), affinely spanning R^p so each W_j is identifiable."""
     try:
         phi = np.asarray(train_phi, dtype=np.float64)
@@ -822,45 +970,3 @@ def recognize(X, models: Mapping[int, ParametricHMM], n_restarts: int = 5) -> Re
     if not np.isfinite(scores[best]):
         raise InvalidInputError(f"no model can explain a {X.shape[0]}-frame sequence (every log-likelihood is -inf)")
     return Recognition(label=best, phi=phis[best], log_likelihoods=scores, phis=phis)
-
-
-def select_n_states(X, lengths, phi, candidates: Sequence[int], n_folds: int = 3,
-                    random_state: int | np.random.Generator | None = None,
-                    **model_kwargs) -> NStatesSelection:
-    """Choose ``n_states`` by cross-validation: mean held-out log-likelihood per frame (at the true effects).
-
-    Sequences are split into ``n_folds`` folds at random; ``model_kwargs`` go to :class:`ParametricHMM`.
-    Candidates that a fold cannot train (too few frames or effects) score ``-inf``.
-    """
-    X, lengths = validate_sequences(X, lengths)
-    phi = _check_train_phi(phi, lengths.size)
-    cands = list(candidates)
-    if not cands or not all(_is_int(c) and c >= 1 for c in cands):
-        raise InvalidInputError(f"candidates must be a non-empty list of ints >= 1; got {candidates!r}")
-    if not _is_int(n_folds) or not 2 <= n_folds <= lengths.size:
-        raise InvalidInputError(f"n_folds must be an int in [2, n_sequences={lengths.size}]; got {n_folds!r}")
-    rng = np.random.default_rng(random_state)
-    folds = np.array_split(rng.permutation(lengths.size), int(n_folds))
-    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
-    seqs = [X[a:a + n] for a, n in zip(starts, lengths)]
-    scores: dict[int, float] = {}
-    for k in map(int, cands):
-        total, frames = 0.0, 0
-        for held in folds:
-            train = np.setdiff1d(np.arange(lengths.size), held)
-            model = ParametricHMM(n_states=k, **model_kwargs)
-            try:
-                model.fit(np.concatenate([seqs[i] for i in train]), lengths[train], phi[train])
-                total += sum(model.score(seqs[i], phi[i]) for i in held)
-            except InvalidInputError as exc:
-                logger.info("n_states=%d: fold not usable (%s)", k, exc)
-                total = -math.inf
-                break
-            frames += int(lengths[held].sum())
-        scores[k] = total / frames if frames else -math.inf
-        logger.debug("n_states=%d: held-out log-likelihood per frame %.4f", k, scores[k])
-    best = max(scores, key=scores.__getitem__)
-    if not np.isfinite(scores[best]):
-        raise InvalidInputError("no candidate n_states could be cross-validated (sequences too short or "
-                                "too few effects per fold)")
-    return NStatesSelection(n_states=best, scores=scores)

@@ -13,13 +13,8 @@ from hoap_actions.errors import (
     NotFittedError,
 )
 from hoap_actions.primitives import hmm_math as hm
-from hoap_actions.primitives.parametric_hmm import (
-    NStatesSelection,
-    ParametricHMM,
-    Recognition,
-    recognize,
-    select_n_states,
-)
+from hoap_actions.primitives.parametric_hmm import ParametricHMM, Recognition, recognize
+from hoap_actions.primitives.phmm_selection import NStatesSelection, select_n_states
 
 K, D, P = 4, 3, 2
 SD = 0.05
@@ -271,7 +266,8 @@ def test_save_load_round_trip(model, data, tmp_path):
     assert loaded.score(x, phis[0]) == model.score(x, phis[0])
     np.testing.assert_allclose(loaded.synthesize(phis[1]), model.synthesize(phis[1]), rtol=1e-14)
     with np.load(path, allow_pickle=False) as raw:
-        assert int(raw["format_version"]) == 2 and str(raw["topology"]) == "left-right"
+        assert int(raw["format_version"]) == 3 and str(raw["topology"]) == "left-right"
+        assert str(raw["mean_model"]) == "linear" and raw["V_"].shape == (K, D, 0)
         assert raw["covars_prior"].shape == (0,)
 
 
@@ -315,8 +311,8 @@ def test_load_rejects_bad_files(model, tmp_path):
     model.save(good)
     with np.load(good) as raw:
         arrays = dict(raw)
-    np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(3)})
-    with pytest.raises(DataFileError, match="format_version 3"):
+    np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(4)})
+    with pytest.raises(DataFileError, match="format_version 4"):
         ParametricHMM.load(tmp_path / "future.npz")
     np.savez(tmp_path / "bad_prior.npz", **{**arrays, "covars_prior": np.ones(D + 1)})
     with pytest.raises(DataFileError, match="covars_prior"):
