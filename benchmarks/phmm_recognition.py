@@ -37,6 +37,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--models", type=Path, help="use this models directory instead of learning one")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes for recognition")
     parser.add_argument("--no-oracle", dest="oracle", action="store_false", help="skip recognition with the cuts given")
+    parser.add_argument("--mean-model", default="linear", choices=("linear", "tps"),
+                        help="the class PHMMs' mean model (default: %(default)s)")
+    parser.add_argument("--smoothing", type=float, default=1.0, help="ridge on the thin-plate bend (tps)")
     return parser.parse_args(argv)
 
 
@@ -51,7 +54,7 @@ def main(argv: list[str] | None = None) -> dict:
     tests = [ensure_recording("paper", seed, args.data) for seed in args.test_seeds]
     learned = None
     if args.models is None:
-        models, learned = learn(train, progress=True)
+        models, learned = learn(train, progress=True, mean_model=args.mean_model, smoothing=args.smoothing)
         print(f"learned {learned.report()}")
     else:
         models = ActionModels.load(args.models)

@@ -157,6 +157,7 @@ class ActionModels(Estimator):
         unexplained_penalty: nats a class pays for a piece shorter than its chain (``None``: ruled out).
         continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
         stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
+        mean_model, smoothing: how each PHMM's state means depend on phi (see :class:`ParametricHMM`).
 
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
     ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
@@ -185,6 +186,8 @@ class ActionModels(Estimator):
         unexplained_penalty: float | None = 1000.0,
         continuity_weight: float = 1e6,
         stay_weight: float = 2.0,
+        mean_model: str = "linear",
+        smoothing: float = 1.0,
     ) -> None:
         self.covariance_type = covariance_type
         self.reg_covar = reg_covar
@@ -198,6 +201,8 @@ class ActionModels(Estimator):
         self.unexplained_penalty = unexplained_penalty
         self.continuity_weight = continuity_weight
         self.stay_weight = stay_weight
+        self.mean_model = mean_model
+        self.smoothing = smoothing
 
     def _check_params(self) -> None:
         def number(name: str, low: float, high: float = math.inf, low_open: bool = False) -> None:
@@ -216,6 +221,9 @@ class ActionModels(Estimator):
         number("state_fraction", 0.0, 1.0, low_open=True)
         number("continuity_weight", 0.0)
         number("stay_weight", 0.0, low_open=True)
+        number("smoothing", 0.0)
+        if self.mean_model not in ("linear", "tps"):
+            raise InvalidInputError(f"mean_model must be 'linear' or 'tps'; got {self.mean_model!r}")
         if self.unexplained_penalty is not None:
             number("unexplained_penalty", 0.0)
         for name in ("max_states", "n_restarts", "n_candidates"):
@@ -324,6 +332,7 @@ class ActionModels(Estimator):
         phmm = ParametricHMM(
             n_states=n_states, covariance_type=self.covariance_type, reg_covar=self.reg_covar, n_iter=100,
             tol=1e-3, random_state=0, covars_prior=covars_prior, covars_weight=self.covars_weight,
+            mean_model=self.mean_model, smoothing=self.smoothing,
         )
         reduced = (phis - centre) @ basis
         phmm.fit(np.concatenate(movements), lengths, reduced)

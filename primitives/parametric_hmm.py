@@ -892,9 +892,9 @@ def _features_from_entries(model: ParametricHMM, path: Path) -> ThinPlateFeature
         return ThinPlateFeatures.none(p)
     features = ThinPlateFeatures(model.__dict__.pop("feature_centres_"), model.__dict__.pop("feature_low_"),
                                  model.__dict__.pop("feature_span_"))
-    if (model.mean_model == "linear") != (m == 0):
+    if (model.mean_model == "linear" and m > 0) or (model.mean_model == "tps" and m == 0 and p > 0):
         raise DataFileError(f"{path}: entry V_ has {m} feature column(s) but mean_model is {model.mean_model!r}; "
-                            "accepted: none for 'linear', one per thin-plate centre for 'tps'")
+                            "accepted: none for 'linear' (or an effect of size 0), one per thin-plate centre for 'tps'")
     try:
         features.check(p)
     except InvalidInputError as exc:

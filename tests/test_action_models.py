@@ -167,6 +167,22 @@ def test_bad_inputs_name_what_is_accepted(small):
         ActionModels(state_fraction=0).fit(np.zeros((10, 18)), [10], discovery, 100.0)
     with pytest.raises(InvalidInputError, match="discovery was fitted on 4 demonstrations but H holds 1"):
         ActionModels().fit(np.zeros((10, 18)), [10], discovery, 100.0)
+    with pytest.raises(InvalidInputError, match="mean_model must be 'linear' or 'tps'"):
+        ActionModels(mean_model="cubic").fit(np.zeros((10, 18)), [10], discovery, 100.0)
+
+
+def test_bending_mean_models_reach_every_class_and_survive_a_round_trip(small, tmp_path):
+    demos, discovery, _, _ = small
+    lengths = [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    bent = ActionModels(mean_model="tps", smoothing=0.5).fit(H, lengths, discovery, demos.fps, demos.marker_names)
+    modelled_classes = [c for c in bent.classes_.values() if c.phmm.phi_dim_ > 0]
+    assert modelled_classes and all(c.phmm.mean_model == "tps" and c.phmm.V_.shape[2] > 0 for c in modelled_classes)
+    bent.save(tmp_path / "bent")
+    again = ActionModels.load(tmp_path / "bent")
+    assert again.get_params() == bent.get_params()
+    piece = demos[0].H[discovery.segmentations_[0][0][1]:discovery.segmentations_[0][0][2]]
+    assert again.recognize(piece).class_id == bent.recognize(piece).class_id
 
 
 def test_phi_far_outside_the_demonstrations_warns(small):
