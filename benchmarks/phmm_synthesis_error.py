@@ -28,7 +28,14 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, use_blas_threads, write_json  # noqa: E402
+from _results import (  # noqa: E402
+    arguments,
+    ensure_recording,
+    numeric_environment,
+    spread,
+    use_blas_threads,
+    write_json,
+)
 
 N_STATES = 40
 STATE_SWEEP = (10, 20, 40)
@@ -186,7 +193,8 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"approach-grid seed {seed}:", flush=True)
         per_recording[seed], maps = evaluate_recording(path, args.diagnose)
         first_maps = first_maps or maps
-    summary = {"human_leave_one_out_mean_cm": spread([r["human_cm"]["leave_one_out_mean"] for r in per_recording.values()])}
+    human = [r["human_cm"]["leave_one_out_mean"] for r in per_recording.values()]
+    summary = {"human_leave_one_out_mean_cm": spread(human)}
     for grid in TRAIN_GRIDS:
         for name in ("linear", "chosen"):
             runs = [r[grid][name] for r in per_recording.values()]

@@ -79,7 +79,8 @@ class ThinPlateFeatures:
                                     f"{self.centres.shape}, {self.low.shape}, {self.span.shape}")
         values = np.concatenate([self.centres.ravel(), self.low, self.span])
         if not np.all(np.isfinite(values)) or np.any(self.span <= 0):
-            raise InvalidInputError("thin-plate features need finite centres and range, and a span > 0 in every component")
+            raise InvalidInputError("thin-plate features need finite centres and range, and a span > 0 in every "
+                                    "component")
 
     def _offsets(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``q - c_i`` (S, m, p) and ``|q - c_i|`` (S, m)."""

@@ -898,7 +898,8 @@ def _features_from_entries(model: ParametricHMM, path: Path) -> ThinPlateFeature
     try:
         features.check(p)
     except InvalidInputError as exc:
-        raise DataFileError(f"{path}: entries feature_centres_/feature_low_/feature_span_ are malformed ({exc})") from exc
+        raise DataFileError(f"{path}: entries feature_centres_/feature_low_/feature_span_ are malformed "
+                            f"({exc})") from exc
     return features
 
 

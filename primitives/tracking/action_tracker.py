@@ -1,0 +1,298 @@
+"""A particle filter in action space: each particle is (a, phi, s), a class, its effect and its PHMM state.
+
+Propagation (the paper's "Action Tracking: PHMM-Based"):
+
+* ``s`` advances through PHMM ``a``'s left-right chain at the rate its transition matrix gives
+  (``1 - a_ss`` states per frame, the expected durations synthesis uses), times a speed drawn per
+  particle, so the filter holds fast and slow performers at once. ``s`` is continuous and the pose is
+  interpolated between neighbouring state means, as :meth:`ParametricHMM.synthesize` does: with a
+  discrete ``s`` a fast reach falls between two means, and particles that wait where the image fits
+  best never catch up.
+* From the chain's last state the class ends with its learned exit probability; a successor is drawn
+  from the grammar and starts where the previous one ended (only the end of phi is estimated). The
+  effects of approach and remove are the hand's start and end, a manipulation's the object's: the
+  hand's end becomes the object's start at the height the two classes' training effects differ by.
+* The end moves by Brownian diffusion that cools as ``s`` advances (early frames say little about
+  where the hand is going), inside the range of its class's training ends widened by 5 cm.
+* A small share of particles (``REDRAW_SHARE`` per frame) draws its end afresh from its class's
+  training effects: the early frames of a reach say little about its goal, and once the particles
+  have agreed on a wrong one, diffusion alone cannot carry them across the table to the right one.
+* Each particle's pose strays from the state's mean by an offset that drifts within the state's
+  learned spread (the PHMM's observation density).
+
+Observation, eq. (8): the posed body is projected into the camera and its contour scored on the edge
+image, ``exp(-mean_C (1 - G(c))^2 / (2 sigma^2))``, in log form (so no likelihood underflows); eq. (9)
+sums the exponents over several views. Weights carry over between frames; systematic resampling when
+the effective sample size falls below half the particles (resampling every frame collapses the end
+estimates before the arm has shown where it goes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.action_models import ActionModels
+from hoap_actions.primitives.base import check_is_fitted
+from hoap_actions.primitives.discovery import MANIPULATION
+from hoap_actions.primitives.tracking.body_model import BodyModel, Projector
+
+__all__ = ["ActionTracker", "TrackedFrame"]
+
+OBSERVATION_SIGMA = 0.3  # sigma of eq. (8), in units of 1 - G: how sharply contours are told apart
+END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
+END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (cooling, never frozen)
+NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class
+SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (people vary +-30 %)
+SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
+REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
+POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
+END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
+RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
+EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
+
+
+@dataclass(frozen=True, eq=False)
+class TrackedFrame:
+    """What the tracker believes after one image.
+
+    ``class_id``, ``state`` and ``phi`` (6,) of the most probable particle; ``class_probabilities``
+    P(a) marginalised over phi and s; ``end_mean`` / ``end_std`` (3,) of phi's estimated end (m);
+    ``entropy`` (nats) of P(a, s); ``markers`` (M, 3) the weighted mean pose; ``log_likelihood`` of the
+    best particle; ``reinitialised`` when no particle could explain the image.
+    """
+
+    class_id: int
+    state: int
+    phi: np.ndarray
+    class_probabilities: Mapping[int, float]
+    end_mean: np.ndarray
+    end_std: np.ndarray
+    entropy: float
+    markers: np.ndarray
+    log_likelihood: float
+    reinitialised: bool = False
+
+
+class ActionTracker:
+    """Track a demonstrator in edge images with the learned action models (see the module docstring).
+
+    Args:
+        models: fitted :class:`ActionModels` (their class PHMMs, grammar and markers).
+        body: the :class:`BodyModel` that turns markers into a contour.
+        cameras: one or more :class:`~hoap_actions.primitives.tracking.body_model.Projector` cameras, one
+            edge image each.
+        n_particles: particles (the paper used 400).
+        hand_start: (3,) m, where the hand rests before the first approach (the first class's start).
+        observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
+        random_state: seed of the filter's draws.
+    """
+
+    def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
+                 n_particles: int = 400, hand_start: np.ndarray | None = None,
+                 observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
+                 random_state: int | np.random.Generator | None = None) -> None:
+        check_is_fitted(models)
+        if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
+            raise InvalidInputError(f"n_particles must be an int >= 1; got {n_particles!r}")
+        if not (observation_sigma > 0 and end_diffusion_m >= 0):
+            raise InvalidInputError("observation_sigma must be > 0 and end_diffusion_m >= 0")
+        if tuple(body.marker_names) != tuple(models.marker_names_):
+            raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
+                                    f"{list(models.marker_names_)}")
+        self.models, self.body = models, body
+        self.cameras = [cameras] if hasattr(cameras, "view_matrix") else list(cameras)
+        self.n_particles = int(n_particles)
+        self.observation_sigma = float(observation_sigma)
+        self.end_diffusion_m = float(end_diffusion_m)
+        self._rng = np.random.default_rng(random_state)
+        self._ids = np.array(sorted(models.classes_))
+        self._n_markers = len(models.marker_names_)
+        self._grammar_rows = self._successor_table()
+        width = 3 * self._n_markers
+        self._position_sd = {cid: np.sqrt(model.phmm.covars_[:, np.arange(width), np.arange(width)]
+                                          if model.phmm.covariance_type == "full" else model.phmm.covars_[:, :width])
+                             for cid, model in models.classes_.items()}
+        self._end_box = {}
+        for cid, model in models.classes_.items():
+            ends = (model.centre + model.phmm.train_phi_ @ model.basis.T)[:, 3:]
+            self._end_box[cid] = (ends.min(axis=0) - END_MARGIN_M, ends.max(axis=0) + END_MARGIN_M)
+        self._hand_start = None if hand_start is None else np.asarray(hand_start, dtype=float)
+        self.reset()
+
+    # ----------------------------------------------------------------------------- set-up
+    def _successor_table(self) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
+        """Grammar as arrays: the start distribution over class ids, and each class's successors (EXIT = end)."""
+        grammar = self.models.grammar_
+        symbols = [int(s) for s in grammar.symbols_]
+        targets = np.array([*symbols, EXIT])
+        table = {int(s): grammar.transmat_[k + 1, 1:] for k, s in enumerate(symbols)}
+        return targets, grammar.transmat_[0, 1:], table
+
+    def reset(self) -> None:
+        """Particles drawn from the grammar's first classes at their first state, ends from training effects."""
+        targets, start_row, _ = self._grammar_rows
+        first = self._rng.choice(targets, size=self.n_particles, p=start_row / start_row.sum())
+        first = np.where(first == EXIT, targets[np.argmax(start_row[:-1])], first)
+        self.class_id = first.astype(int)
+        self.state = np.zeros(self.n_particles)
+        self.speed = np.exp(self._rng.normal(0.0, SPEED_SPREAD, self.n_particles))
+        self.offset = np.zeros((self.n_particles, self._n_markers * 3))
+        self.start = np.zeros((self.n_particles, 3))
+        self.end = np.zeros((self.n_particles, 3))
+        self.resting = np.zeros(self.n_particles, dtype=bool)
+        self.weights = np.full(self.n_particles, 1.0 / self.n_particles)
+        for cid in np.unique(self.class_id):
+            chosen = np.flatnonzero(self.class_id == cid)
+            effects = self._training_effects(cid, chosen.size)
+            self.start[chosen] = effects[:, :3] if self._hand_start is None else self._hand_start
+            self.end[chosen] = effects[:, 3:] + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
+
+    def _training_effects(self, class_id: int, n: int) -> np.ndarray:
+        """``n`` full effects (6,) drawn from class ``class_id``'s training effects."""
+        model = self.models.classes_[class_id]
+        reduced = model.phmm.train_phi_[self._rng.integers(0, len(model.phmm.train_phi_), size=n)]
+        return model.centre + np.einsum("np,kp->nk", reduced, model.basis)
+
+    # ----------------------------------------------------------------------------- the filter
+    def step(self, edges: np.ndarray | Sequence[np.ndarray]) -> TrackedFrame:
+        """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`), resample."""
+        images = [edges] if isinstance(edges, np.ndarray) else list(edges)
+        if len(images) != len(self.cameras):
+            raise InvalidInputError(f"give one edge image per camera ({len(self.cameras)}); got {len(images)}")
+        for image, camera in zip(images, self.cameras):
+            if np.shape(image) != (camera.height, camera.width):
+                raise InvalidInputError(f"an edge image must be ({camera.height}, {camera.width}) for its camera; "
+                                        f"got {np.shape(image)}")
+        self._propagate()
+        markers = self.markers()
+        log_weights = self._log_likelihood(markers, images)
+        reinitialised = not np.any(np.isfinite(log_weights))
+        if reinitialised:  # nothing explains the image: start again from the prior, never NaN
+            self.reset()
+            markers = self.markers()
+            log_weights = np.zeros(self.n_particles)
+        log_weights = log_weights + np.log(self.weights)
+        weights = np.exp(log_weights - log_weights.max())
+        weights /= weights.sum()
+        frame = self._summary(weights, markers, float(log_weights.max()), reinitialised)
+        self.weights = weights
+        if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
+            self._resample(weights)
+        return frame
+
+    def _propagate(self) -> None:
+        targets, _, table = self._grammar_rows
+        u = self._rng.random(self.n_particles)
+        for cid in np.unique(self.class_id):
+            chosen = np.flatnonzero((self.class_id == cid) & ~self.resting)
+            if not chosen.size:
+                continue
+            model = self.models.classes_[cid]
+            k = model.phmm.n_states
+            rate = 1.0 - np.diagonal(model.phmm.transmat_)
+            self.speed[chosen] *= np.exp(self._rng.normal(0.0, SPEED_JITTER, chosen.size))
+            last = self.state[chosen] >= k - 1
+            s = np.minimum(self.state[chosen], k - 1)
+            self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen], k - 1)
+            spread = self._position_sd[cid][s.astype(int)]
+            noise = self._rng.normal(0.0, 1.0, spread.shape) * spread
+            self.offset[chosen] = POSE_MEMORY * self.offset[chosen] + np.sqrt(1.0 - POSE_MEMORY**2) * noise
+            cooling = END_DIFFUSION_FLOOR + (1.0 - END_DIFFUSION_FLOOR) * (1.0 - s / max(k - 1, 1))
+            step = self._rng.normal(0.0, 1.0, (chosen.size, 3)) * (self.end_diffusion_m * cooling)[:, None]
+            self.end[chosen] = np.clip(self.end[chosen] + step, *self._end_box[cid])
+            redraw = chosen[self._rng.random(chosen.size) < REDRAW_SHARE]
+            if redraw.size:
+                fresh = self._training_effects(cid, redraw.size)[:, 3:]
+                if model.kind == MANIPULATION:
+                    fresh = fresh - self._training_effects(cid, redraw.size)[:, :3] + self.start[redraw]
+                self.end[redraw] = fresh + self._rng.normal(0.0, NEW_END_SPREAD_M, (redraw.size, 3))
+            leaving = chosen[last & (u[chosen] < model.exit_probability)]
+            if leaving.size:
+                self._switch(leaving, self._rng.choice(targets, size=leaving.size, p=table[cid] / table[cid].sum()))
+
+    def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
+        """Particles that finished their class start the next one where the last ended (EXIT: rest there)."""
+        self.resting[particles[successors == EXIT]] = True
+        for cid in np.unique(successors[successors != EXIT]):
+            chosen = particles[successors == cid]
+            effects = self._training_effects(int(cid), chosen.size)
+            new = self.models.classes_[int(cid)]
+            previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
+            start = self.end[chosen].copy()
+            start[:, 2] += new.centre[2] - previous_end_height
+            if self.models.classes_[int(cid)].kind == MANIPULATION:  # the object moves by a learned displacement
+                end = start + effects[:, 3:] - effects[:, :3]
+            else:
+                end = effects[:, 3:]
+            self.class_id[chosen], self.state[chosen] = int(cid), 0.0
+            self.speed[chosen] = np.exp(self._rng.normal(0.0, SPEED_SPREAD, chosen.size))
+            self.start[chosen] = start
+            self.end[chosen] = end + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
+
+    def markers(self) -> np.ndarray:
+        """Each particle's body pose ``(N, M, 3)``: its PHMM's mean markers at its phi, between states
+        ``floor(s)`` and ``ceil(s)``."""
+        out = np.empty((self.n_particles, self._n_markers, 3))
+        width = 3 * self._n_markers
+        for cid in np.unique(self.class_id):
+            chosen = np.flatnonzero(self.class_id == cid)
+            model = self.models.classes_[cid]
+            phmm = model.phmm
+            phi = np.hstack([self.start[chosen], self.end[chosen]])
+            reduced = np.einsum("nk,kp->np", phi - model.centre, model.basis)
+            low = np.floor(self.state[chosen]).astype(int)
+            high = np.minimum(low + 1, phmm.n_states - 1)
+            share = (self.state[chosen] - low)[:, None]
+            bend = phmm.effect_features_.transform(reduced) if phmm.V_.shape[2] else None
+
+            def mean_at(s: np.ndarray) -> np.ndarray:
+                means = phmm.mean_bar_[s, :width] + np.einsum("ndp,np->nd", phmm.W_[s, :width], reduced)
+                return means if bend is None else means + np.einsum("ndm,nm->nd", phmm.V_[s, :width], bend)
+
+            pose = (1.0 - share) * mean_at(low) + share * mean_at(high) + self.offset[chosen]
+            out[chosen] = pose.reshape(-1, self._n_markers, 3)
+        return out
+
+    def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray]) -> np.ndarray:
+        """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)``; off-image points count as 1."""
+        total = np.zeros(self.n_particles)
+        for image, camera in zip(images, self.cameras):
+            pixels = self.body.contour(markers, camera)
+            u = np.rint(pixels[..., 0]).astype(np.int64)
+            v = np.rint(pixels[..., 1]).astype(np.int64)
+            inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height) & np.isfinite(pixels).all(axis=2)
+            distance = np.ones(u.shape)
+            distance[inside] = 1.0 - image[v[inside], u[inside]]
+            total -= np.mean(distance**2, axis=1) / (2.0 * self.observation_sigma**2)
+        return total
+
+    def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool) -> TrackedFrame:
+        best = int(np.argmax(weights))
+        probabilities = {int(c): float(weights[self.class_id == c].sum()) for c in np.unique(self.class_id)}
+        joint: dict[tuple[int, int], float] = {}
+        for c, s, w in zip(self.class_id, self.state.astype(int), weights):
+            joint[(c, s)] = joint.get((c, s), 0.0) + w
+        p = np.array([w for w in joint.values() if w > 0])
+        # weighted sums by numpy's own reduction, not BLAS: BLAS's first call in a process can round
+        # differently from later ones, and the same seed must give the same estimates bit for bit
+        mean = np.sum(weights[:, None] * self.end, axis=0)
+        std = np.sqrt(np.maximum(np.sum(weights[:, None] * (self.end - mean) ** 2, axis=0), 0.0))
+        return TrackedFrame(
+            class_id=int(self.class_id[best]), state=int(self.state[best]),
+            phi=np.r_[self.start[best], self.end[best]], class_probabilities=probabilities, end_mean=mean,
+            end_std=std, entropy=max(0.0, float(-np.sum(p * np.log(p)))),
+            markers=np.sum(weights[:, None, None] * markers, axis=0),
+            log_likelihood=best_ll, reinitialised=reinitialised)
+
+    def _resample(self, weights: np.ndarray) -> None:
+        """Systematic resampling: one uniform draw, N evenly spaced pointers into the cumulative weights."""
+        positions = (self._rng.random() + np.arange(self.n_particles)) / self.n_particles
+        index = np.minimum(np.searchsorted(np.cumsum(weights), positions), self.n_particles - 1)
+        self.class_id, self.state, self.speed = self.class_id[index], self.state[index], self.speed[index]
+        self.offset = self.offset[index]
+        self.start, self.end, self.resting = self.start[index], self.end[index], self.resting[index]
+        self.weights = np.full(self.n_particles, 1.0 / self.n_particles)

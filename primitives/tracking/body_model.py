@@ -1,0 +1,143 @@
+"""The demonstrator's body as capsules posed from the six arm markers, and its contour in a camera.
+
+Each capsule joins two points (a marker, or the torso's base) with a radius. Its silhouette in a
+pinhole camera is, to first order, the projected axis offset on both sides by the projected radius
+(the radius divided by depth, through the camera's focal length) plus a cap at each end; the contour
+is sampled there for every body of a batch at once (numpy, no rendering).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import cv2
+import numpy as np
+
+from hoap_actions.errors import InvalidInputError
+
+__all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "Projector", "project"]
+
+
+class Projector(Protocol):
+    """A pinhole camera: image size, and OpenGL-style 4x4 view and projection matrices
+    (:class:`hoap_actions.envs.sim.Camera` is one)."""
+
+    width: int
+    height: int
+
+    def view_matrix(self) -> np.ndarray: ...
+
+    def projection_matrix(self) -> np.ndarray: ...
+
+
+def project(points: np.ndarray, camera: Projector) -> np.ndarray:
+    """Pixels ``(..., 2)`` (u right, v down) of world points ``(..., 3)``.
+
+    Products by ``einsum`` rather than BLAS: BLAS may round its first call in a process differently,
+    and a tracker must give the same answer for the same seed bit for bit.
+    """
+    matrix = np.einsum("ij,jk->ik", camera.projection_matrix(), camera.view_matrix())
+    clip = np.einsum("ij,...j->...i", matrix[:, :3], points) + matrix[:, 3]
+    ndc = clip[..., :2] / clip[..., 3:4]
+    return np.stack([(ndc[..., 0] + 1.0) * 0.5 * camera.width, (1.0 - ndc[..., 1]) * 0.5 * camera.height], axis=-1)
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """A segment between two named points (a marker name, or ``"torso_base"``) fleshed out to ``radius`` (m)."""
+
+    start: str
+    end: str
+    radius: float
+
+
+# Radii of the demonstration world's arm (human_arm.urdf): upper arm 4.5 cm, forearm 3.5 cm, the palm a
+# 8.5 x 3 cm box seen as a 3 cm capsule, index finger and thumb 9 mm; the thorax 32 cm wide.
+ARM_CAPSULES = (
+    Capsule("torso_base", "neck", 0.15),
+    Capsule("shoulder", "elbow", 0.045),
+    Capsule("elbow", "wrist", 0.035),
+    Capsule("wrist", "index_knuckle", 0.03),
+    Capsule("index_knuckle", "index_tip", 0.009),
+    Capsule("wrist", "thumb_tip", 0.0095),
+)
+NECK_FROM_SHOULDER = np.array([0.0, 0.17, 0.0])  # m: the torso's top centre, from the right shoulder marker
+
+
+class BodyModel:
+    """Capsules over the markers ``marker_names`` (plus a fixed ``torso_base``, m, scene frame).
+
+    :meth:`contour` gives ``(N, P, 2)`` pixels for ``N`` bodies of markers ``(N, M, 3)``.
+    """
+
+    def __init__(self, marker_names: tuple[str, ...], torso_base: np.ndarray,
+                 capsules: tuple[Capsule, ...] = ARM_CAPSULES, points_per_side: int = 8) -> None:
+        self.marker_names = tuple(marker_names)
+        known = set(self.marker_names) | {"torso_base", "neck"}
+        missing = sorted({name for c in capsules for name in (c.start, c.end)} - known)
+        if missing:
+            raise InvalidInputError(f"the body model needs markers {missing}, which these models do not have "
+                                    f"(their markers: {list(self.marker_names)})")
+        if "neck" in {n for c in capsules for n in (c.start, c.end)} and "shoulder" not in self.marker_names:
+            raise InvalidInputError("the torso's top is placed from the 'shoulder' marker, which these models lack")
+        self.torso_base = np.asarray(torso_base, dtype=float)
+        self.capsules = capsules
+        self.points_per_side = int(points_per_side)
+        self._radius = np.array([c.radius for c in capsules])
+
+    @property
+    def n_points(self) -> int:
+        """Contour points per body: both sides of every capsule and its two caps."""
+        return len(self.capsules) * (2 * self.points_per_side + 2)
+
+    def _point(self, name: str, markers: np.ndarray) -> np.ndarray:
+        if name == "torso_base":
+            return np.broadcast_to(self.torso_base, markers.shape[:1] + (3,))
+        if name == "neck":
+            return markers[:, self.marker_names.index("shoulder")] + NECK_FROM_SHOULDER
+        return markers[:, self.marker_names.index(name)]
+
+    def contour(self, markers: np.ndarray, camera: Projector) -> np.ndarray:
+        """Pixels ``(N, P, 2)`` of the bodies' silhouettes for markers ``(N, M, 3)`` (m, scene frame)."""
+        markers = np.asarray(markers, dtype=float)
+        n = markers.shape[0]
+        starts = np.stack([self._point(c.start, markers) for c in self.capsules], axis=1)  # (N, C, 3)
+        ends = np.stack([self._point(c.end, markers) for c in self.capsules], axis=1)
+        side = camera.view_matrix()[0, :3]  # the camera's right axis in the world: a radius across the view
+        radius = self._radius[None, :, None]
+        points = np.concatenate([starts, ends, starts + radius * side, ends + radius * side], axis=1)
+        pixels = project(points, camera).reshape(n, 4, len(self.capsules), 2)
+        a, b = pixels[:, 0], pixels[:, 1]                                     # (N, C, 2)
+        rho_a = np.linalg.norm(pixels[:, 2] - a, axis=2)                      # projected radii (px)
+        rho_b = np.linalg.norm(pixels[:, 3] - b, axis=2)
+        axis = b - a
+        length = np.linalg.norm(axis, axis=2, keepdims=True)
+        direction = np.where(length > 1e-9, axis / np.maximum(length, 1e-9), np.array([1.0, 0.0]))
+        normal = np.stack([-direction[..., 1], direction[..., 0]], axis=2)
+        t = np.linspace(0.0, 1.0, self.points_per_side)[None, None, :, None]  # (1, 1, K, 1)
+        centre = a[:, :, None] + t * axis[:, :, None]
+        rho = (1.0 - t) * rho_a[:, :, None, None] + t * rho_b[:, :, None, None]
+        left = centre + rho * normal[:, :, None]
+        right = centre - rho * normal[:, :, None]
+        caps = np.stack([a - rho_a[..., None] * direction, b + rho_b[..., None] * direction], axis=2)
+        return np.concatenate([left, right, caps], axis=2).reshape(n, -1, 2)
+
+    def draw(self, image: np.ndarray, markers: np.ndarray, camera: Projector, color: tuple[int, int, int],
+             filled: bool = False, thickness: int = 1) -> np.ndarray:
+        """``image`` (H, W, 3) uint8 with one body (markers ``(M, 3)``) drawn on it: each capsule's outline
+        (or, ``filled``, its silhouette, nearest capsule last)."""
+        out = np.ascontiguousarray(image).copy()
+        k = self.points_per_side
+        outline = self.contour(np.asarray(markers, float)[None], camera)[0].reshape(len(self.capsules), -1, 2)
+        for capsule in outline:
+            left, right, caps = capsule[:k], capsule[k:2 * k], capsule[2 * k:]
+            polygon = np.vstack([caps[:1], left, caps[1:], right[::-1]])
+            if not np.all(np.isfinite(polygon)) or np.abs(polygon).max() > 1e5:
+                continue
+            points = np.rint(polygon).astype(np.int32)
+            if filled:
+                cv2.fillPoly(out, [points], color, lineType=cv2.LINE_AA)
+            else:
+                cv2.polylines(out, [points], True, color, thickness, lineType=cv2.LINE_AA)
+        return out

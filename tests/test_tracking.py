@@ -1,0 +1,151 @@
+"""Tracking in action space: edge images, the body model's contour, the particle filter."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hoap_actions.default_models import load_default_models
+from hoap_actions.envs.sim import Camera
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.tracking.action_tracker import ActionTracker
+from hoap_actions.primitives.tracking.body_model import BodyModel, Capsule
+from hoap_actions.primitives.tracking.edges import edge_image
+
+MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
+TORSO_BASE = np.array([-0.47, 0.25, -0.20])  # the demonstration scene's pelvis
+CAMERA = Camera(eye=(0.3, -0.8, 0.45), target=(-0.25, 0.05, 0.05), fov_deg=55, width=320, height=240)
+
+
+# ------------------------------------------------------------------------------------------ edges
+def test_edge_image_is_one_on_edges_and_zero_far_from_them():
+    image = np.zeros((60, 80), np.uint8)
+    image[20:40, 30:50] = 200
+    G = edge_image(image)
+    assert G.dtype == np.float32 and G.shape == (60, 80)
+    assert G.max() == pytest.approx(1.0)
+    assert G[20, 40] > 0.5 and G[30, 30] > 0.5           # on the square's outline
+    assert G[30, 40] < 0.05 and G[5, 5] < 0.05            # its inside and far outside: no edge
+    assert G[30, 27] > G[30, 24] > G[30, 20]              # the pull falls off with distance
+
+
+def test_edge_image_bad_input():
+    for bad, match in ((np.zeros((60, 80), np.uint8), "no edges"), (np.zeros((4, 4), np.uint8), "H, W >= 8"),
+                       (np.zeros((20, 20), np.int32), "dtype"), (np.full((20, 20), np.nan), "finite"),
+                       (np.zeros((20, 20, 2), np.uint8), "colour")):
+        with pytest.raises(InvalidInputError, match=match):
+            edge_image(bad)
+
+
+# ------------------------------------------------------------------------------------- body model
+def test_capsule_contour_lies_at_the_projected_radius_from_its_axis():
+    """A capsule across the view at depth d: its sides are f r / d pixels from the projected axis
+    (f = h / (2 tan(fov / 2))), the pinhole's answer."""
+    camera = Camera(eye=(1.0, 0.0, 0.0), target=(0.0, 0.0, 0.0), fov_deg=60.0, width=200, height=200)
+    body = BodyModel(("a", "b"), np.zeros(3), capsules=(Capsule("a", "b", 0.05),), points_per_side=5)
+    markers = np.array([[[0.0, -0.1, 0.0], [0.0, 0.1, 0.0]]])
+    pixels = body.contour(markers, camera)[0]
+    focal = 100.0 / np.tan(np.radians(30.0))
+    sides = pixels[:10]
+    np.testing.assert_allclose(np.abs(sides[:, 1] - 100.0), focal * 0.05 / 1.0, rtol=1e-6)
+    np.testing.assert_allclose(np.sort(pixels[10:, 0]), 100.0 + np.array([-1, 1]) * focal * 0.15, rtol=1e-6)
+    assert body.n_points == 12
+
+
+def test_body_model_needs_the_models_markers():
+    with pytest.raises(InvalidInputError, match="needs markers"):
+        BodyModel(("shoulder", "elbow"), TORSO_BASE)
+
+
+# ------------------------------------------------------------------------------------- the filter
+@pytest.fixture(scope="module")
+def models():
+    return load_default_models()
+
+
+@pytest.fixture(scope="module")
+def reach(models):
+    """The shipped approach class synthesised for a reach towards the table's centre: (T, 6, 3)."""
+    approach = next(cid for cid, c in models.classes_.items() if c.kind == "approach")
+    model = models.classes_[approach]
+    with np.errstate(all="ignore"):
+        phi = model.centre.copy()
+        phi[3:5] += [0.05, -0.04]
+        movement = models.synthesize(approach, phi)
+    return approach, phi, movement
+
+
+def images(body, movement):
+    for pose in movement:
+        picture = body.draw(np.full((CAMERA.height, CAMERA.width, 3), 90, np.uint8), pose, CAMERA, (220, 180, 150),
+                            filled=True)
+        yield edge_image(picture)
+
+
+def test_likelihood_prefers_the_true_pose(models, reach):
+    _, _, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=3, random_state=0)
+    t = len(movement) * 3 // 4
+    G = next(iter(images(body, movement[t:t + 1])))
+    moved = movement[t] + np.array([0.0, 0.05, 0.0])
+    bent = movement[t].copy()
+    bent[1:] += [0.0, 0.0, 0.05]
+    scores = tracker._log_likelihood(np.stack([movement[t], moved, bent]), [G])
+    assert scores[0] > scores[1] and scores[0] > scores[2]
+
+
+def test_tracks_a_reach_better_than_standing_still(models, reach):
+    """On images of a synthesised reach, for each of three seeds the filter's pose estimate and its class
+    beat the trivial answers (the arm held at its first pose; a class on fewer than 70 % of frames), and
+    its estimate of where the hand goes ends within 6 cm of the truth in the median run."""
+    approach, phi, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    edges = list(images(body, movement))
+    still = np.sqrt(np.mean(np.sum((movement[:1] - movement) ** 2, axis=2)))
+    end_errors = []
+    for seed in range(3):
+        tracker = ActionTracker(models, body, CAMERA, n_particles=200, random_state=seed)
+        frames = [tracker.step(G) for G in edges]
+        estimate = np.array([f.markers for f in frames])
+        assert np.sqrt(np.mean(np.sum((estimate - movement) ** 2, axis=2))) < 0.35 * still
+        assert np.mean([f.class_probabilities.get(approach, 0.0) > 0.5 for f in frames]) > 0.7
+        assert all(np.isfinite(f.entropy) and f.entropy >= 0.0 for f in frames)
+        end_errors.append(np.linalg.norm(frames[-1].end_mean[:2] - phi[3:5]))
+    assert np.median(end_errors) < 0.06
+
+
+def test_same_seed_same_track(models, reach):
+    _, _, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    runs = []
+    for _ in range(2):
+        tracker = ActionTracker(models, body, CAMERA, n_particles=50, random_state=3)
+        runs.append(np.array([tracker.step(G).markers for G in images(body, movement[:40])]))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_systematic_resampling_keeps_heavy_particles(models):
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=10, random_state=0)
+    tracker.end = np.arange(30, dtype=float).reshape(10, 3)
+    weights = np.zeros(10)
+    weights[[2, 7]] = [0.7, 0.3]
+    tracker._resample(weights)
+    kept = tracker.end[:, 0] / 3
+    assert np.sum(kept == 2) == 7 and np.sum(kept == 7) == 3
+    np.testing.assert_allclose(tracker.weights, 0.1)
+
+
+def test_tracker_bad_input(models):
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    with pytest.raises(InvalidInputError, match="n_particles"):
+        ActionTracker(models, body, CAMERA, n_particles=0)
+    with pytest.raises(InvalidInputError, match="markers"):
+        ActionTracker(models, BodyModel(("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip",
+                                         "extra"), TORSO_BASE), CAMERA)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=5)
+    with pytest.raises(InvalidInputError, match=r"\(240, 320\)"):
+        tracker.step(np.zeros((10, 10), np.float32))
+    with pytest.raises(InvalidInputError, match="one edge image per camera"):
+        tracker.step([np.zeros((240, 320), np.float32)] * 2)
