@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.envs.sim import Sim
+from hoap_actions.envs.sim import Camera, CameraImage, Sim
 from hoap_actions.envs.world import HUMAN_ACTIVE_REGION_SIZE, HUMAN_TO_ROBOT_OFFSET, HUMAN_TO_ROBOT_SCALE
 from hoap_actions.errors import InvalidInputError
 
@@ -27,6 +27,9 @@ logger = logging.getLogger(__name__)
 ACTIVE_REGION_LOW = -0.5 * np.array(HUMAN_ACTIVE_REGION_SIZE)  # m, (x, y) corner of the active region
 ACTIVE_REGION_HIGH = 0.5 * np.array(HUMAN_ACTIVE_REGION_SIZE)
 HAND_LINKS = ("r_palm", "r_index", "r_thumb")  # the only links of the demonstrator with collision shapes
+DEMONSTRATOR_CAMERA = Camera(eye=(0.75, -0.45, 0.55), target=(-0.30, 0.05, 0.10), fov_deg=55.0, width=320, height=240)
+"""A monocular camera across the table from the demonstrator and to their right (the paper's Fig. 12
+view): the reaching arm is seen from the front-side, so the target's depth shows in the image."""
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,24 @@ class DemoScene:
         self.sim.restore_state(self._initial_state)
         quat = Rotation.from_euler("z", float(object_yaw)).as_quat()  # (x, y, z, w)
         self.sim.set_base_pose("object", [xy[0], xy[1], self.config.object_size / 2.0], quat)
+
+    def pose(self, joint_names: tuple[str, ...], q: np.ndarray, object_pose: np.ndarray) -> None:
+        """Put the demonstrator at joint angles ``q`` (rad, by ``joint_names``) and the block at
+        ``object_pose`` (6,): one recorded frame (``Episode.Q``, ``Episode.O``), for a camera."""
+        joints = {j.name: j.index for j in self.sim.joints("human")}
+        unknown = [name for name in joint_names if name not in joints]
+        q, object_pose = np.asarray(q, float), np.asarray(object_pose, float)
+        if unknown or q.shape != (len(joint_names),) or object_pose.shape != (6,):
+            raise InvalidInputError(f"a frame needs one angle per joint of the demonstrator ({sorted(joints)}) and a "
+                                    f"6-D object pose; got joints {list(joint_names)}, q {q.shape}, object {object_pose.shape}")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(object_pose))):
+            raise InvalidInputError("joint angles and object pose must be finite")
+        self.sim.reset_joints("human", [joints[name] for name in joint_names], q)
+        self.sim.set_base_pose("object", object_pose[:3], Rotation.from_rotvec(object_pose[3:]).as_quat())
+
+    def render(self, camera: Camera = DEMONSTRATOR_CAMERA) -> CameraImage:
+        """What ``camera`` sees of the scene as posed."""
+        return self.sim.render(camera)
 
     def object_pose(self) -> np.ndarray:
         """The block's pose (6,): centre position (m) and rotation vector (rad, scipy ``as_rotvec``)."""

@@ -93,6 +93,7 @@ BODY_JOINTS = (
     "r_wrist_deviation",
 )
 FINGER_JOINTS = ("r_index_mcp", "r_thumb_cmc")
+RECORDED_JOINTS = BODY_JOINTS + FINGER_JOINTS  # every joint of the demonstrator that moves, in Q's column order
 DIRECTIONS = {"left": (0.0, 1.0), "right": (0.0, -1.0), "forward": (1.0, 0.0), "backward": (-1.0, 0.0)}
 """Push/move directions in the scene frame: left = +y, right = -y, forward = +x (away from the
 demonstrator; the paper's "up"), backward = -x (towards them; "down")."""
@@ -229,7 +230,8 @@ class DemoRecording:
     ``H`` (T, 6, 3) markers in :data:`MARKER_NAMES` order; ``O`` (T, 6) block position + rotation vector;
     ``labels`` (T,) codes into :data:`PHASE_NAMES`; ``object_target`` (6,) the intended end pose;
     ``hand_rest`` (3,) the palm centre at rest before the approach; ``grasped`` whether a grasp
-    constraint was made; ``table_contact_frames`` frames in which the hand touched the table.
+    constraint was made; ``table_contact_frames`` frames in which the hand touched the table; ``Q``
+    (T, J) the joint angles of :data:`RECORDED_JOINTS` (rad), which pose the body for a camera.
     """
 
     H: np.ndarray
@@ -237,6 +239,7 @@ class DemoRecording:
     labels: np.ndarray
     object_target: np.ndarray
     hand_rest: np.ndarray
+    Q: np.ndarray
     grasped: bool = False
     table_contact_frames: int = 0
 
@@ -382,6 +385,7 @@ class _Tape:
 
     H: list[np.ndarray] = field(default_factory=list)
     O: list[np.ndarray] = field(default_factory=list)
+    Q: list[np.ndarray] = field(default_factory=list)
     labels: list[int] = field(default_factory=list)
     table_contacts: int = 0
 
@@ -395,7 +399,7 @@ class Demonstrator:
         sim = self.sim
         self.ik = ArmIK(np.array(scene.config.demonstrator_position))
         joints = {info.name: info for info in sim.joints("human")}
-        names = BODY_JOINTS + FINGER_JOINTS
+        names = RECORDED_JOINTS
         self._joint_indices = [joints[name].index for name in names]
         self._forces = np.array([joints[name].max_force for name in names])
         self._max_velocities = np.array([joints[name].max_velocity for name in names])
@@ -452,6 +456,7 @@ class Demonstrator:
         return DemoRecording(
             H=np.array(tape.H),
             O=np.array(tape.O),
+            Q=np.array(tape.Q),
             labels=np.array(tape.labels, dtype=np.int16),
             object_target=task.target_pose(start),
             hand_rest=self._rest_sites["palm_site"][0],
@@ -769,6 +774,7 @@ class Demonstrator:
         tape = self._tape
         tape.H.append(self.sim.link_poses("human", self._marker_links)[0])
         tape.O.append(self.scene.object_pose())
+        tape.Q.append(self.sim.joint_states("human", self._joint_indices)[0])
         tape.labels.append(self._phase_codes[label])
         tape.table_contacts += bool(self.sim.contacts("human", "table"))
 

@@ -39,6 +39,7 @@ from hoap_actions.envs.demonstrator import (
     LABELS_VERSION,
     MARKER_NAMES,
     PHASE_NAMES,
+    RECORDED_JOINTS,
     TURNS,
     Demonstrator,
     DemoRecording,
@@ -139,7 +140,7 @@ def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) ->
         grid=task.grid,
         grid_index=np.array(task.grid_index),
     )
-    return Episode(H=recording.H, O=recording.O, ground_truth=truth, seed=(seed, index + 1))
+    return Episode(H=recording.H, O=recording.O, ground_truth=truth, seed=(seed, index + 1), Q=recording.Q)
 
 
 def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True) -> Path:
@@ -192,6 +193,7 @@ def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool)
             "table_contact_episodes": table_contacts,
             "missed_grasp_episodes": missed_grasps,
         },
+        joint_names=RECORDED_JOINTS,
     )
 
 

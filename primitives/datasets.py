@@ -6,16 +6,20 @@ object trajectories with evaluation-only labels. HDF5 is self-describing (names,
 attributes), checksummed per chunk (Fletcher-32), and readable without this package (h5py, MATLAB,
 ``h5dump``).
 
-File layout (``format_version`` 1)::
+File layout (``format_version`` 2; version 1 files, written before recordings kept the demonstrator's
+joint angles, load with ``Q`` None)::
 
-    /                              attrs: format = "hoap-actions-demonstrations", format_version = 1,
+    /                              attrs: format = "hoap-actions-demonstrations", format_version = 2,
                                           fps (Hz), marker_names (6 str), phase_names (str table),
                                           units = "m, rad, s", frame (str), rotation_convention (str),
-                                          seed (int), scene (JSON str), generator (JSON str), episodes (int)
+                                          seed (int), scene (JSON str), generator (JSON str), episodes (int),
+                                          joint_names (J str; empty: no Q)
     /episode_00000/                attrs: seed (2 ints: the recording seed and the episode's index)
         H        (T, 6, 3) float64   marker positions (m): shoulder, elbow, wrist, index fingertip,
                                      index knuckle, thumb tip (root attr marker_names), scene frame
         O        (T, 6)    float64   object pose: centre position (m) and rotation vector (rad)
+        Q        (T, J)    float64   the demonstrator's joint angles (rad, root attr joint_names), when
+                                     recorded: with O, all a camera needs to render the scene again
         ground_truth/              attrs: action, direction (str), distance (m), angle (rad),
                                           repetition (int), grid (str, "" if none)
             labels         (T,) int16   phase code per frame, an index into /phase_names
@@ -59,7 +63,8 @@ from hoap_actions.outputs import claimed_file
 logger = logging.getLogger(__name__)
 
 FORMAT = "hoap-actions-demonstrations"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+_READABLE_VERSIONS = (1, 2)
 N_MARKERS = 6
 ROTATION_CONVENTION = (
     "O[:, 3:] = scipy Rotation.as_rotvec() of the object orientation in the scene frame (rad, |angle| <= pi)"
@@ -125,17 +130,22 @@ class GroundTruth:
 @dataclass(frozen=True)
 class Episode:
     """One demonstration: ``H`` (T, 6, 3) marker positions (m), ``O`` (T, 6) object pose (m, rad),
-    its evaluation-only ``ground_truth``, and the ``seed`` pair it was recorded with."""
+    its evaluation-only ``ground_truth``, the ``seed`` pair it was recorded with, and ``Q`` (T, J) the
+    demonstrator's joint angles (rad) when recorded (None otherwise): learning reads H and O; Q is
+    what a camera needs to see the demonstration (:meth:`DemoScene.pose`)."""
 
     H: np.ndarray
     O: np.ndarray
     ground_truth: GroundTruth
     seed: tuple[int, int] = (0, 0)
+    Q: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "H", _array(self.H))
         object.__setattr__(self, "O", _array(self.O))
         object.__setattr__(self, "seed", tuple(int(s) for s in self.seed))
+        if self.Q is not None:
+            object.__setattr__(self, "Q", _array(self.Q))
 
     @property
     def T(self) -> int:
@@ -154,6 +164,7 @@ class Demonstrations(Sequence[Episode]):
     seed: int = 0
     scene: dict = field(default_factory=dict)
     generator: dict = field(default_factory=dict)
+    joint_names: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -178,8 +189,14 @@ class Demonstrations(Sequence[Episode]):
 
 
 # ---------------------------------------------------------------------------------------- writing
-def _check_episode(index: int, episode: Episode, n_phases: int) -> None:
+def _check_episode(index: int, episode: Episode, n_phases: int, n_joints: int) -> None:
     where = f"episode {index}"
+    if (episode.Q is None) != (n_joints == 0):
+        raise InvalidInputError(f"{where}: Q must be given exactly when joint_names are ({n_joints} names, Q "
+                                f"{'missing' if episode.Q is None else 'given'})")
+    if episode.Q is not None and (episode.Q.shape != (len(episode.H), n_joints) or not np.all(np.isfinite(episode.Q))):
+        raise InvalidInputError(f"{where}: Q must be finite with shape (T, J) = ({len(episode.H)}, {n_joints}); "
+                                f"got {episode.Q.shape}")
     H, O, labels = episode.H, episode.O, episode.ground_truth.labels
     if H.ndim != 3 or H.shape[1:] != (N_MARKERS, 3) or len(H) < 1:
         raise InvalidInputError(f"{where}: H must have shape (T, {N_MARKERS}, 3) with T >= 1; got {H.shape}")
@@ -215,7 +232,7 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
     if not demos.episodes:
         raise InvalidInputError("there are no episodes to write")
     for index, episode in enumerate(demos.episodes):
-        _check_episode(index, episode, len(demos.phase_names))
+        _check_episode(index, episode, len(demos.phase_names), len(demos.joint_names))
     # HDF5 locks files with flock too; the claim already holds this one exclusively
     with h5py.File(file, "w", track_order=True, locking=False) as f:
         f.attrs.update(
@@ -231,6 +248,7 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
             scene=json.dumps(demos.scene, sort_keys=True),
             generator=json.dumps(demos.generator, sort_keys=True),
             episodes=len(demos.episodes),
+            joint_names=list(demos.joint_names),
         )
         for index, episode in enumerate(demos.episodes):
             _write_episode(f.create_group(f"episode_{index:05d}"), episode)
@@ -240,6 +258,8 @@ def _write_episode(group: h5py.Group, episode: Episode) -> None:
     group.attrs["seed"] = np.array(episode.seed, dtype=np.int64)
     group.create_dataset("H", data=episode.H, chunks=episode.H.shape, track_times=False, **_ARRAY_OPTIONS)
     group.create_dataset("O", data=episode.O, chunks=episode.O.shape, track_times=False, **_ARRAY_OPTIONS)
+    if episode.Q is not None:
+        group.create_dataset("Q", data=episode.Q, chunks=episode.Q.shape, track_times=False, **_ARRAY_OPTIONS)
     truth = episode.ground_truth
     gt = group.create_group("ground_truth")
     gt.attrs.update(
@@ -283,13 +303,15 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
         raise DataFileError(f"{path}: format is {fmt!r}, expected {FORMAT!r}")
     version = f.attrs.get("format_version")
     version = version.item() if isinstance(version, np.generic) else version
-    if version != FORMAT_VERSION:
-        raise DataFileError(f"{path}: format_version {version!r} is not supported; this code reads {FORMAT_VERSION}")
+    if isinstance(version, bool) or version not in _READABLE_VERSIONS:
+        raise DataFileError(f"{path}: format_version {version!r} is not supported; this code reads "
+                            f"{list(_READABLE_VERSIONS)}")
     header = {name: _attribute(f, name, str(path)) for name in _ROOT_ATTRIBUTES}
     marker_names = tuple(str(m) for m in header["marker_names"])
     phase_names = tuple(str(p) for p in header["phase_names"])
     if len(marker_names) != N_MARKERS:
         raise DataFileError(f"{path}: expected {N_MARKERS} marker names, found {list(marker_names)}")
+    joint_names = tuple(str(j) for j in _attribute(f, "joint_names", str(path))) if version >= 2 else ()
     names = sorted(name for name in f if name.startswith("episode_"))
     if len(names) != int(header["episodes"]):
         raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(header['episodes'])}")
@@ -297,7 +319,7 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     for name in names:
         if not isinstance(f[name], h5py.Group):
             raise DataFileError(f"{path}:{name} is an array; accepted: a group holding {', '.join(_EPISODE_ARRAYS)}")
-        episodes.append(_read_episode(f[name], f"{path}:{name}", phase_names))
+        episodes.append(_read_episode(f[name], f"{path}:{name}", phase_names, len(joint_names)))
     return Demonstrations(
         episodes=tuple(episodes),
         fps=float(header["fps"]),
@@ -306,10 +328,11 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
         seed=int(header["seed"]),
         scene=json.loads(header["scene"]),
         generator=json.loads(header["generator"]),
+        joint_names=joint_names,
     )
 
 
-def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...]) -> Episode:
+def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...], n_joints: int) -> Episode:
     """One episode with every entry checked, so an edited or damaged file fails here naming the episode
     and the entry, not later in the learning code."""
     H, O, labels = (_entry(group, name, where) for name in ("H", "O", "ground_truth/labels"))
@@ -348,7 +371,13 @@ def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...]) -
     except (TypeError, ValueError) as exc:
         raise DataFileError(f"{where}: a ground_truth or seed attribute is malformed ({exc}); accepted: distance, "
                             "angle numbers, repetition an int, seed 2 ints") from exc
-    return Episode(H=H, O=O, ground_truth=truth, seed=seed)
+    Q = None
+    if n_joints:
+        Q = _entry(group, "Q", where)
+        if Q.shape != (len(H), n_joints) or Q.dtype.kind != "f" or not np.all(np.isfinite(Q)):
+            raise DataFileError(f"{where}: entry Q has shape {Q.shape} and dtype {Q.dtype}; accepted: ({len(H)}, "
+                                f"{n_joints}) finite joint angles, one column per root attribute joint_names")
+    return Episode(H=H, O=O, ground_truth=truth, seed=seed, Q=Q)
 
 
 def _entry(group: h5py.Group, name: str, where: str) -> np.ndarray:

@@ -3,6 +3,8 @@ writes, and a clear error for every kind of bad file."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import h5py
 import numpy as np
 import pytest
@@ -63,6 +65,47 @@ def test_round_trip_keeps_everything(written, demos):
     assert [s[0] for s in loaded[0].ground_truth.segments()] == list(PHASES)
 
 
+JOINTS = ("lumbar", "shoulder", "elbow")
+
+
+def with_joint_angles(demos: Demonstrations) -> Demonstrations:
+    rng = np.random.default_rng(1)
+    episodes = tuple(dataclasses.replace(e, Q=rng.normal(0.0, 0.5, (e.T, len(JOINTS)))) for e in demos)
+    return dataclasses.replace(demos, episodes=episodes, joint_names=JOINTS)
+
+
+def test_joint_angles_round_trip(tmp_path, demos):
+    posed = with_joint_angles(demos)
+    loaded = load_demonstrations(write_demonstrations(tmp_path / "posed.h5", posed))
+    assert loaded.joint_names == JOINTS
+    for a, b in zip(loaded, posed):
+        assert np.array_equal(a.Q, b.Q)
+    assert all(e.Q is None for e in load_demonstrations(write_demonstrations(tmp_path / "bare.h5", demos)))
+
+
+def test_version_1_files_load_without_joint_angles(written):
+    with h5py.File(written, "r+") as f:
+        f.attrs["format_version"] = 1
+        del f.attrs["joint_names"]
+    loaded = load_demonstrations(written)
+    assert loaded.joint_names == () and all(e.Q is None for e in loaded)
+
+
+def test_joint_angles_must_match_their_names(tmp_path, demos):
+    posed = with_joint_angles(demos)
+    short = dataclasses.replace(posed, episodes=(dataclasses.replace(posed[0], Q=posed[0].Q[:, :2]),))
+    with pytest.raises(InvalidInputError, match="Q must be finite with shape"):
+        write_demonstrations(tmp_path / "short.h5", short)
+    with pytest.raises(InvalidInputError, match="Q must be given exactly when joint_names are"):
+        write_demonstrations(tmp_path / "nameless.h5", dataclasses.replace(posed, joint_names=()))
+    path = write_demonstrations(tmp_path / "posed.h5", posed)
+    with h5py.File(path, "r+") as f:
+        del f["episode_00001/Q"]
+        f["episode_00001/Q"] = np.zeros((45, 2))
+    with pytest.raises(DataFileError, match="episode_00001: entry Q has shape"):
+        load_demonstrations(path)
+
+
 def test_hmmlearn_views(written):
     loaded = load_demonstrations(written)
     X, lengths = loaded.movement_data()
@@ -74,7 +117,7 @@ def test_hmmlearn_views(written):
 
 def test_layout_is_readable_without_this_package(written):
     with h5py.File(written, "r") as f:
-        assert f.attrs["format"] == "hoap-actions-demonstrations" and f.attrs["format_version"] == 1
+        assert f.attrs["format"] == "hoap-actions-demonstrations" and f.attrs["format_version"] == 2
         assert list(f.attrs["marker_names"]) == list(MARKERS)
         assert f["episode_00000/H"].shape == (30, 6, 3) and f["episode_00000/O"].shape == (30, 6)
         assert f["episode_00000/ground_truth/labels"].shape == (30,)
@@ -160,7 +203,7 @@ def test_not_hdf5(tmp_path):
 
 @pytest.mark.parametrize(
     "attr, value, message",
-    [("format", "something-else", "format is"), ("format_version", 2, "format_version 2 is not supported")],
+    [("format", "something-else", "format is"), ("format_version", 3, "format_version 3 is not supported")],
 )
 def test_wrong_format_or_version(written, attr, value, message):
     with h5py.File(written, "r+") as f:

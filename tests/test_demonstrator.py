@@ -254,3 +254,25 @@ def test_human_to_robot_mapping_is_one_scale_and_one_offset():
     assert np.all(mapped[:, :2] >= WORK_AREA_LOW - 1e-9) and np.all(mapped[:, :2] <= WORK_AREA_HIGH + 1e-9)
     assert np.allclose(robot_to_human(mapped), corners)
     assert 0.0 < HUMAN_TO_ROBOT_SCALE < 1.0
+
+
+def test_recorded_joint_angles_pose_the_demonstrator_exactly_for_a_camera(small):
+    """Q and O put the scene back as it was: every marker where the recording has it, bit for bit, and
+    the demonstration camera sees the arm move."""
+    episode = small[0]
+    assert small.joint_names and episode.Q.shape == (episode.T, len(small.joint_names))
+    scene = DemoScene()
+    try:
+        links = [scene.sim.link_index("human", f"marker_{name}") for name in small.marker_names]
+        pictures = []
+        for t in (0, episode.T // 2):
+            scene.pose(small.joint_names, episode.Q[t], episode.O[t])
+            np.testing.assert_array_equal(scene.sim.link_poses("human", links)[0], episode.H[t])
+            pictures.append(scene.render().rgb.astype(int))
+        assert np.abs(pictures[0] - pictures[1]).max() > 100
+        with pytest.raises(InvalidInputError, match="one angle per joint"):
+            scene.pose(("no_such_joint",), np.zeros(1), episode.O[0])
+        with pytest.raises(InvalidInputError, match="finite"):
+            scene.pose(small.joint_names, np.full(len(small.joint_names), np.nan), episode.O[0])
+    finally:
+        scene.close()

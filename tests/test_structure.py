@@ -97,3 +97,16 @@ def test_no_policy_reaches_into_the_envs_internals():
     policies = [name for name in MODULES if name.startswith("hoap_actions.controllers.")]
     reaching = [name for name in policies if "unwrapped" in MODULES[name].read_text()]
     assert reaching == [], reaching
+
+
+def test_every_subpackage_is_listed_for_the_wheel():
+    """A folder with an ``__init__.py`` that ``pyproject.toml`` does not list is left out of the wheel,
+    and its imports fail only after ``pip install`` (editable installs hide it)."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = set()
+    for folder, package in PACKAGES.items():
+        for init in (ROOT / folder).rglob("__init__.py"):
+            found.add(".".join((package, *init.parent.relative_to(ROOT / folder).parts)))
+    assert found <= listed, f"not listed in pyproject.toml: {sorted(found - listed)}"

@@ -1,0 +1,45 @@
+"""Tracking a recorded episode from the demonstration camera: the pipeline and its scores."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from hoap_actions.default_models import load_default_models
+from hoap_actions.envs.recording import record
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.datasets import load_demonstrations
+from hoap_actions.tracking import track_episode
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    return load_demonstrations(record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False))
+
+
+def test_tracks_an_episode_from_rendered_frames(small):
+    models = load_default_models()
+    episode = 3  # the small preset's bare approach
+    result = track_episode(models, small, episode, particles=100, seed=0)
+    summary = result.summary()
+    T = small[episode].T
+    assert summary["frames"] == T == len(summary["recognized"]) == len(summary["truth"])
+    assert set(summary["rms_m"]) == {"shoulder", "elbow", "index_tip"}
+    # the shoulder hardly moves and the torso is big in the image: it is found within a few cm
+    assert summary["rms_m"]["shoulder"] < 0.05
+    assert 0.0 < summary["rms_m_all"] < 0.5 and summary["hz"] > 0
+    assert summary["approaches_converged"].endswith("/1")
+    again = track_episode(models, small, episode, particles=100, seed=0).summary()
+    assert again["rms_m_all"] == summary["rms_m_all"] and again["recognized"] == summary["recognized"]
+
+
+def test_refuses_what_it_cannot_track(small):
+    models = load_default_models()
+    bare = dataclasses.replace(small, joint_names=(), episodes=tuple(dataclasses.replace(e, Q=None) for e in small))
+    with pytest.raises(InvalidInputError, match="no joint angles"):
+        track_episode(models, bare, 0)
+    with pytest.raises(InvalidInputError, match=r"episode must be in \[0, 3\]"):
+        track_episode(models, small, 4)
+    with pytest.raises(InvalidInputError, match="n_particles"):
+        track_episode(models, small, 0, particles=0)
