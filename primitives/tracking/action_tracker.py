@@ -215,31 +215,39 @@ class ActionTracker:
                 self._switch(leaving, self._rng.choice(targets, size=leaving.size, p=table[cid] / table[cid].sum()))
 
     def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
-        """Particles that finished their class start the next one where the last ended (EXIT: rest there)."""
+        """Particles that finished their class start the next one where the last ended (EXIT: rest there).
+
+        A manipulation starts at the object, where the previous class ended (the hand's end of an
+        approach, moved to the object's height); approach and remove start at the particle's own hand.
+        """
         self.resting[particles[successors == EXIT]] = True
+        hands = self.markers(particles)[:, self.models.discovery_.hand_marker]
         for cid in np.unique(successors[successors != EXIT]):
-            chosen = particles[successors == cid]
+            rows = np.flatnonzero(successors == cid)
+            chosen = particles[rows]
             effects = self._training_effects(int(cid), chosen.size)
             new = self.models.classes_[int(cid)]
-            previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
-            start = self.end[chosen].copy()
-            start[:, 2] += new.centre[2] - previous_end_height
-            if self.models.classes_[int(cid)].kind == MANIPULATION:  # the object moves by a learned displacement
+            if new.kind == MANIPULATION:  # the object moves by a learned displacement
+                previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
+                start = self.end[chosen].copy()
+                start[:, 2] += new.centre[2] - previous_end_height
                 end = start + effects[:, 3:] - effects[:, :3]
             else:
-                end = effects[:, 3:]
+                start, end = hands[rows], effects[:, 3:]
             self.class_id[chosen], self.state[chosen] = int(cid), 0.0
             self.speed[chosen] = np.exp(self._rng.normal(0.0, SPEED_SPREAD, chosen.size))
             self.start[chosen] = start
             self.end[chosen] = end + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
 
-    def markers(self) -> np.ndarray:
-        """Each particle's body pose ``(N, M, 3)``: its PHMM's mean markers at its phi, between states
-        ``floor(s)`` and ``ceil(s)``."""
-        out = np.empty((self.n_particles, self._n_markers, 3))
+    def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
+        """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
+        markers at its phi, between states ``floor(s)`` and ``ceil(s)``, plus its offset."""
+        particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
+        out = np.empty((particles.size, self._n_markers, 3))
         width = 3 * self._n_markers
-        for cid in np.unique(self.class_id):
-            chosen = np.flatnonzero(self.class_id == cid)
+        for cid in np.unique(self.class_id[particles]):
+            rows = np.flatnonzero(self.class_id[particles] == cid)
+            chosen = particles[rows]
             model = self.models.classes_[cid]
             phmm = model.phmm
             phi = np.hstack([self.start[chosen], self.end[chosen]])
@@ -254,7 +262,7 @@ class ActionTracker:
                 return means if bend is None else means + np.einsum("ndm,nm->nd", phmm.V_[s, :width], bend)
 
             pose = (1.0 - share) * mean_at(low) + share * mean_at(high) + self.offset[chosen]
-            out[chosen] = pose.reshape(-1, self._n_markers, 3)
+            out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
     def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray]) -> np.ndarray:
