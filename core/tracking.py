@@ -21,10 +21,10 @@ from hoap_actions.primitives.datasets import Demonstrations
 from hoap_actions.primitives.discovery import UNKNOWN
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.tracking.action_tracker import ActionTracker, TrackedFrame
-from hoap_actions.primitives.tracking.body_model import BodyModel
+from hoap_actions.primitives.tracking.body_model import BodyModel, project
 from hoap_actions.primitives.tracking.edges import edge_image
 
-__all__ = ["TrackResult", "track_episode"]
+__all__ = ["TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 CONVERGED_M = 0.02  # an approach's estimated end counts as found once it stays within this of the truth
@@ -42,6 +42,7 @@ class TrackResult:
     particles: int
     track_s: float                      # wall time of edge images + filter (rendering excluded)
     edges: list[np.ndarray] = field(default_factory=list)
+    images: list[np.ndarray] = field(default_factory=list)
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers and of all, frame rate, approach-end error and frames to
@@ -74,9 +75,10 @@ class TrackResult:
 
 
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
-                  seed: int = 0, keep_edges: bool = False,
+                  seed: int = 0, keep_images: bool = False,
                   progress: Callable[[int, int], None] | None = None) -> TrackResult:
-    """Render episode ``episode`` of ``demos`` from the demonstration camera and track it."""
+    """Render episode ``episode`` of ``demos`` from the demonstration camera and track it (``keep_images``:
+    keep every camera and edge image, for :func:`tracking_video_frames`)."""
     if not demos.joint_names:
         raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
                                 "record it again with this version: hoap-actions record")
@@ -90,7 +92,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     try:
         body = BodyModel(models.marker_names_, torso_base=np.asarray(scene.config.demonstrator_position))
         tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
-        frames, kept, spent = [], [], 0.0
+        frames, kept, pictures, spent = [], [], [], 0.0
         for t in range(ep.T):
             scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
             image = scene.render().rgb
@@ -98,8 +100,9 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
             edges = edge_image(image)
             frames.append(tracker.step(edges))
             spent += time.perf_counter() - started
-            if keep_edges:
+            if keep_images:
                 kept.append(edges)
+                pictures.append(image)
             if progress is not None:
                 progress(t + 1, ep.T)
     finally:
@@ -109,4 +112,52 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     kinds = {cid: c.kind for cid, c in models.classes_.items()}
     approaches = [(start, end, ep.H[end - 1, hand]) for cid, start, end in runs(truth)
                   if cid != UNKNOWN and kinds.get(cid) == "approach"]
-    return TrackResult(frames, ep.H, np.asarray(truth), approaches, tuple(models.marker_names_), particles, spent, kept)
+    return TrackResult(frames, ep.H, np.asarray(truth), approaches, tuple(models.marker_names_), particles, spent,
+                       kept, pictures)
+
+
+def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:
+    """Fig. 12 as video frames: the edge image beside the camera image with the estimated body (red), the
+    true markers' body (green, thin) and the estimated end of the current primitive (red dot)."""
+    import cv2
+
+    if not result.images:
+        raise InvalidInputError("the track kept no images: track with keep_images=True to film it")
+    out = []
+    for t in range(0, len(result.frames), every):
+        frame = result.frames[t]
+        picture = body.draw(result.images[t], result.truth_markers[t], DEMONSTRATOR_CAMERA, (0, 160, 0))
+        picture = body.draw(picture, frame.markers, DEMONSTRATOR_CAMERA, (230, 0, 0), thickness=2)
+        u, v = project(frame.end_mean, DEMONSTRATOR_CAMERA)
+        if np.isfinite(u) and np.isfinite(v):
+            cv2.circle(picture, (int(round(u)), int(round(v))), 4, (230, 0, 0), -1, lineType=cv2.LINE_AA)
+        cv2.putText(picture, f"class {frame.class_id}  s {frame.state}  H {frame.entropy:.2f}", (6, 16),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        edges = cv2.cvtColor((result.edges[t] * 255).astype(np.uint8), cv2.COLOR_GRAY2RGB)
+        out.append(np.hstack([edges, picture]))
+    return out
+
+
+def effect_figure(result: TrackResult, path, fps: float) -> None:
+    """Fig. 11: the estimated end of the current primitive (x, y) over time, one standard deviation
+    around it, and the true end of each approach."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.arange(len(result.frames)) / fps
+    mean = np.array([f.end_mean for f in result.frames]) * 100
+    std = np.array([f.end_std for f in result.frames]) * 100
+    fig, ax = plt.subplots(figsize=(7, 3.2), constrained_layout=True)
+    for k, (name, colour) in enumerate((("x", "tab:red"), ("y", "tab:green"))):
+        ax.plot(t, mean[:, k], color=colour, label=f"estimated end {name}")
+        ax.fill_between(t, mean[:, k] - std[:, k], mean[:, k] + std[:, k], color=colour, alpha=0.2)
+        for start, end, target in result.approach_ends:
+            ax.hlines(target[k] * 100, start / fps, end / fps, colors=colour, linestyles="dotted")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("cm (scene frame)")
+    ax.set_title("Fig. 11: the tracked effect; dotted: each approach's true end")
+    ax.legend(fontsize=8, loc="best")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import pytest
 
@@ -43,3 +44,23 @@ def test_refuses_what_it_cannot_track(small):
         track_episode(models, small, 4)
     with pytest.raises(InvalidInputError, match="n_particles"):
         track_episode(models, small, 0, particles=0)
+
+
+def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path, capsys):
+    from hoap_actions.cli import main
+    from hoap_actions.primitives.datasets import write_demonstrations
+
+    path = tmp_path / "small.h5"
+    write_demonstrations(path, small)
+    out = tmp_path / "track.json"
+    assert main(["track", "--demos", str(path), "--episode", "3", "--particles", "50", "--json", str(out),
+                 "--figure", str(tmp_path / "fig11.png")]) == 0
+    report = json.loads(out.read_text())
+    assert {"rms_m", "rms_m_all", "hz", "particles", "frames", "phi_error_m", "frames_to_converge", "recognized",
+            "truth"} <= set(report)
+    assert report["particles"] == 50 and len(report["recognized"]) == report["frames"] == small[3].T
+    assert (tmp_path / "fig11.png").stat().st_size > 0
+    assert main(["track", "--demos", str(path), "--episode", "3", "--json", str(out)]) == 2  # exists: not replaced
+    assert main(["track", "--demos", str(path), "--episode", "9"]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 2 and "episode must be in [0, 3]" in errors[1]
