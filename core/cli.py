@@ -189,7 +189,6 @@ def _recognize(args: argparse.Namespace) -> int:
 
 def _track(args: argparse.Namespace) -> int:
     from hoap_actions.default_models import load_default_models
-    from hoap_actions.envs.demo_scene import DemoSceneConfig
     from hoap_actions.primitives.action_models import ActionModels
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.tracking.body_model import BodyModel
@@ -210,7 +209,7 @@ def _track(args: argparse.Namespace) -> int:
         if "video" in claimed:
             import imageio.v3 as iio
 
-            body = BodyModel(models.marker_names_, torso_base=DemoSceneConfig().demonstrator_position)
+            body = BodyModel(models.marker_names_, torso_base=result.torso_base)
             with open(claimed["video"], "wb") as fh:
                 iio.imwrite(fh, np.stack(tracking_video_frames(result, body)), extension=".mp4", fps=demos.fps / 4,
                             codec="libx264", macro_block_size=1)

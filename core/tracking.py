@@ -41,6 +41,7 @@ class TrackResult:
     marker_names: tuple[str, ...]
     particles: int
     track_s: float                      # wall time of edge images + filter (rendering excluded)
+    torso_base: np.ndarray              # (3,) the body model's fixed trunk base (the lumbar joint)
     edges: list[np.ndarray] = field(default_factory=list)
     images: list[np.ndarray] = field(default_factory=list)
 
@@ -90,7 +91,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     ep = demos[episode]
     scene = DemoScene()
     try:
-        body = BodyModel(models.marker_names_, torso_base=np.asarray(scene.config.demonstrator_position))
+        body = BodyModel(models.marker_names_, torso_base=scene.torso_base())
         tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
         frames, kept, pictures, spent = [], [], [], 0.0
         for t in range(ep.T):
@@ -113,7 +114,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     approaches = [(start, end, ep.H[end - 1, hand]) for cid, start, end in runs(truth)
                   if cid != UNKNOWN and kinds.get(cid) == "approach"]
     return TrackResult(frames, ep.H, np.asarray(truth), approaches, tuple(models.marker_names_), particles, spent,
-                       kept, pictures)
+                       body.torso_base, kept, pictures)
 
 
 def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:

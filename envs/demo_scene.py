@@ -96,6 +96,10 @@ class DemoScene:
         self.sim.reset_joints("human", [joints[name] for name in joint_names], q)
         self.sim.set_base_pose("object", object_pose[:3], Rotation.from_rotvec(object_pose[3:]).as_quat())
 
+    def torso_base(self) -> np.ndarray:
+        """The demonstrator's lumbar joint (m, scene frame): the fixed bottom of the trunk, which leans about it."""
+        return self.sim.link_poses("human", [self.sim.link_index("human", "thorax")])[0][0].copy()
+
     def render(self, camera: Camera = DEMONSTRATOR_CAMERA) -> CameraImage:
         """What ``camera`` sees of the scene as posed."""
         return self.sim.render(camera)

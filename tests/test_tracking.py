@@ -13,7 +13,7 @@ from hoap_actions.primitives.tracking.body_model import BodyModel, Capsule
 from hoap_actions.primitives.tracking.edges import edge_image
 
 MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
-TORSO_BASE = np.array([-0.47, 0.25, -0.20])  # the demonstration scene's pelvis
+TORSO_BASE = np.array([-0.47, 0.25, -0.10])  # the demonstration scene's lumbar joint
 CAMERA = Camera(eye=(0.3, -0.8, 0.45), target=(-0.25, 0.05, 0.05), fov_deg=55, width=320, height=240)
 
 

@@ -42,7 +42,9 @@ from hoap_actions.primitives.tracking.body_model import BodyModel, Projector
 
 __all__ = ["ActionTracker", "TrackedFrame"]
 
-OBSERVATION_SIGMA = 0.3  # sigma of eq. (8), in units of 1 - G: how sharply contours are told apart
+# sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen on a validation
+# recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before the arm shows it
+OBSERVATION_SIGMA = 0.5
 END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
 END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (cooling, never frozen)
 NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class

@@ -45,28 +45,39 @@ def project(points: np.ndarray, camera: Projector) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Capsule:
-    """A segment between two named points (a marker name, or ``"torso_base"``) fleshed out to ``radius`` (m)."""
+    """A segment between two named points (a marker, ``"torso_base"``, or a point placed from the shoulder
+    marker: ``"neck"``, ``"head_low"``, ``"head_high"``) fleshed out to ``radius`` (m)."""
 
     start: str
     end: str
     radius: float
 
 
-# Radii of the demonstration world's arm (human_arm.urdf): upper arm 4.5 cm, forearm 3.5 cm, the palm a
-# 8.5 x 3 cm box seen as a 3 cm capsule, index finger and thumb 9 mm; the thorax 32 cm wide.
+# Sizes of the demonstration world's body (human_arm.urdf): the thorax a 32 x 20 cm box seen as a 14 cm
+# capsule, the head a 10 cm sphere, upper arm 4.5 cm, forearm 3.5 cm, the palm an 8.5 x 3 cm box seen
+# as a 3.5 cm capsule, index finger and thumb 9 mm.
 ARM_CAPSULES = (
-    Capsule("torso_base", "neck", 0.15),
+    Capsule("torso_base", "neck", 0.14),
+    Capsule("head_low", "head_high", 0.095),
     Capsule("shoulder", "elbow", 0.045),
     Capsule("elbow", "wrist", 0.035),
-    Capsule("wrist", "index_knuckle", 0.03),
+    Capsule("wrist", "index_knuckle", 0.035),
     Capsule("index_knuckle", "index_tip", 0.009),
     Capsule("wrist", "thumb_tip", 0.0095),
 )
-NECK_FROM_SHOULDER = np.array([0.0, 0.17, 0.0])  # m: the torso's top centre, from the right shoulder marker
+# m, points of the trunk placed from the right shoulder marker (measured on the demonstrator at rest and
+# mid-reach, within 1.5 cm): the capsule end below the thorax's top (its cap reaches the top), and the
+# head's axis. The trunk's base is the lumbar joint, which stays put (``torso_base``).
+FROM_SHOULDER = {
+    "neck": np.array([0.0, 0.227, 0.026 - 0.14]),
+    "head_low": np.array([0.01, 0.227, 0.216 - 0.03]),
+    "head_high": np.array([0.01, 0.227, 0.216 + 0.03]),
+}
 
 
 class BodyModel:
-    """Capsules over the markers ``marker_names`` (plus a fixed ``torso_base``, m, scene frame).
+    """Capsules over the markers ``marker_names`` (plus the trunk's fixed base ``torso_base``, the lumbar
+    joint, m, scene frame).
 
     :meth:`contour` gives ``(N, P, 2)`` pixels for ``N`` bodies of markers ``(N, M, 3)``.
     """
@@ -74,13 +85,13 @@ class BodyModel:
     def __init__(self, marker_names: tuple[str, ...], torso_base: np.ndarray,
                  capsules: tuple[Capsule, ...] = ARM_CAPSULES, points_per_side: int = 8) -> None:
         self.marker_names = tuple(marker_names)
-        known = set(self.marker_names) | {"torso_base", "neck"}
+        known = set(self.marker_names) | {"torso_base"} | set(FROM_SHOULDER)
         missing = sorted({name for c in capsules for name in (c.start, c.end)} - known)
         if missing:
             raise InvalidInputError(f"the body model needs markers {missing}, which these models do not have "
                                     f"(their markers: {list(self.marker_names)})")
-        if "neck" in {n for c in capsules for n in (c.start, c.end)} and "shoulder" not in self.marker_names:
-            raise InvalidInputError("the torso's top is placed from the 'shoulder' marker, which these models lack")
+        if set(FROM_SHOULDER) & {n for c in capsules for n in (c.start, c.end)} and "shoulder" not in self.marker_names:
+            raise InvalidInputError("the trunk is placed from the 'shoulder' marker, which these models lack")
         self.torso_base = np.asarray(torso_base, dtype=float)
         self.capsules = capsules
         self.points_per_side = int(points_per_side)
@@ -94,8 +105,8 @@ class BodyModel:
     def _point(self, name: str, markers: np.ndarray) -> np.ndarray:
         if name == "torso_base":
             return np.broadcast_to(self.torso_base, markers.shape[:1] + (3,))
-        if name == "neck":
-            return markers[:, self.marker_names.index("shoulder")] + NECK_FROM_SHOULDER
+        if name in FROM_SHOULDER:
+            return markers[:, self.marker_names.index("shoulder")] + FROM_SHOULDER[name]
         return markers[:, self.marker_names.index(name)]
 
     def contour(self, markers: np.ndarray, camera: Projector) -> np.ndarray:
