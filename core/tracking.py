@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DemoScene
+from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import Demonstrations
@@ -24,7 +25,7 @@ from hoap_actions.primitives.tracking.action_tracker import ActionTracker, Track
 from hoap_actions.primitives.tracking.body_model import BodyModel, project
 from hoap_actions.primitives.tracking.edges import edge_image
 
-__all__ = ["TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
+__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 CONVERGED_M = 0.02  # an approach's estimated end counts as found once it stays within this of the truth
@@ -76,10 +77,10 @@ class TrackResult:
 
 
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
-                  seed: int = 0, keep_images: bool = False,
+                  seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
                   progress: Callable[[int, int], None] | None = None) -> TrackResult:
-    """Render episode ``episode`` of ``demos`` from the demonstration camera and track it (``keep_images``:
-    keep every camera and edge image, for :func:`tracking_video_frames`)."""
+    """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
+    track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`)."""
     if not demos.joint_names:
         raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
                                 "record it again with this version: hoap-actions record")
@@ -92,11 +93,11 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     scene = DemoScene()
     try:
         body = BodyModel(models.marker_names_, torso_base=scene.torso_base())
-        tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
+        tracker = ActionTracker(models, body, camera, n_particles=particles, random_state=seed)
         frames, kept, pictures, spent = [], [], [], 0.0
         for t in range(ep.T):
             scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
-            image = scene.render().rgb
+            image = scene.render(camera).rgb
             started = time.perf_counter()
             edges = edge_image(image)
             frames.append(tracker.step(edges))

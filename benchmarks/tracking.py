@@ -1,0 +1,133 @@
+"""Tracking in action space from the demonstration camera (the paper's Figs. 10-12): accuracy and speed.
+
+Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (seeds 201-203,
+declared in ``results/NOTES.md`` before they were recorded; validation: seed 300), episodes 0, 13, ...,
+91 of each (every action of the preset), with the shipped models and the filter's seed 0. Per
+recording: RMS error of shoulder, elbow and finger (index tip) and of all six markers over whole
+episodes, the approach's estimated end at its last frame and the frames it took to stay within 2 cm,
+the share of frames whose most probable class is the one discovery reads from the block. Baselines:
+the arm held in its first pose (RMS), and the most frequent class (frame agreement). Speed: frames per
+second of edge image + filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 /
+640 x 480 (400 particles), on one episode, rendering excluded.
+
+    python benchmarks/tracking.py [--seeds 201 202 203] [--episodes 0 13 26 ...]
+
+Recordings are ``data/paper-s<seed>.h5``, recorded when missing. Writes ``results/tracking.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+
+EPISODES = tuple(range(0, 104, 13))
+GOALS = {"rms_shoulder_elbow_finger_m": 0.02, "phi_error_m": 0.02, "frames_to_converge": 60, "frame_accuracy": 0.9,
+         "hz_400_particles": 50.0}
+PARTICLE_COUNTS = (100, 400, 1600)
+IMAGE_SIZES = ((160, 120), (320, 240), (640, 480))
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     parents=[arguments("tracking.json", data=True)])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[201, 202, 203], help="held-out paper recordings")
+    parser.add_argument("--episodes", type=int, nargs="+", default=list(EPISODES))
+    parser.add_argument("--particles", type=int, default=400)
+    return parser.parse_args(argv)
+
+
+def recording_figures(models, demos, episodes, particles) -> dict:
+    """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
+    import numpy as np
+
+    from hoap_actions.primitives.discovery import UNKNOWN
+    from hoap_actions.tracking import SCORED_MARKERS, track_episode
+
+    runs = []
+    for index in episodes:
+        result = track_episode(models, demos, index, particles=particles, seed=0)
+        summary = result.summary()
+        held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
+        summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
+        summary["episode"] = index
+        runs.append(summary)
+        print(f"  episode {index:3d} ({demos[index].ground_truth.action}): RMS all {100 * summary['rms_m_all']:.1f} cm "
+              f"(held still {100 * summary['baseline_rms_m_all']:.1f}), classes {summary['frame_accuracy']:.0%}, "
+              f"{summary['hz']:.0f} Hz", flush=True)
+    truth = np.concatenate([r["truth"] for r in runs])
+    recognized = np.concatenate([r["recognized"] for r in runs])
+    known = truth != UNKNOWN
+    majority = np.bincount(truth[known]).argmax()
+    pooled = {
+        "rms_m": {m: float(np.sqrt(np.mean([r["rms_m"][m] ** 2 for r in runs]))) for m in SCORED_MARKERS},
+        "rms_m_all": float(np.sqrt(np.mean([r["rms_m_all"] ** 2 for r in runs]))),
+        "baseline_rms_m_all": float(np.sqrt(np.mean([r["baseline_rms_m_all"] ** 2 for r in runs]))),
+        "phi_error_m": float(np.median([r["phi_error_m"] for r in runs if r["phi_error_m"] is not None])),
+        "approaches_converged": sum(int(r["approaches_converged"].split("/")[0]) for r in runs),
+        "approaches": sum(int(r["approaches_converged"].split("/")[1]) for r in runs),
+        "frame_accuracy": float(np.mean(recognized[known] == truth[known])),
+        "baseline_frame_accuracy": float(np.mean(truth[known] == majority)),
+        "hz": float(np.median([r["hz"] for r in runs])),
+    }
+    found = [r["frames_to_converge"] for r in runs if r["frames_to_converge"] is not None]
+    pooled["frames_to_converge_median"] = float(np.median(found)) if found else None
+    return {"pooled": pooled, "episodes": [{k: v for k, v in r.items() if k not in ("recognized", "truth")} for r in runs]}
+
+
+def speed(models, demos, episode) -> dict:
+    """Frames per second (edge image + filter) against particles and image size."""
+    from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA
+    from hoap_actions.tracking import track_episode
+
+    out = {"particles": {}, "image_size_400_particles": {}}
+    for n in PARTICLE_COUNTS:
+        out["particles"][n] = track_episode(models, demos, episode, particles=n, seed=0).summary()["hz"]
+    for width, height in IMAGE_SIZES:
+        camera = dataclasses.replace(DEMONSTRATOR_CAMERA, width=width, height=height)
+        out["image_size_400_particles"][f"{width}x{height}"] = track_episode(
+            models, demos, episode, particles=400, seed=0, camera=camera).summary()["hz"]
+    print(f"  speed: {out}", flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    args = parse_args(argv)
+    from hoap_actions.default_models import load_default_models
+    from hoap_actions.primitives.datasets import load_demonstrations
+
+    started = time.perf_counter()
+    models = load_default_models()
+    per_recording = {}
+    for seed in args.seeds:
+        demos = load_demonstrations(ensure_recording("paper", seed, args.data))
+        print(f"paper seed {seed}:", flush=True)
+        per_recording[seed] = recording_figures(models, demos, args.episodes, args.particles)
+    pooled = [r["pooled"] for r in per_recording.values()]
+    summary = {key: spread([p[key] for p in pooled]) for key in
+               ("rms_m_all", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "baseline_frame_accuracy", "hz")}
+    for marker in pooled[0]["rms_m"]:
+        summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
+    result = {
+        "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
+                     "models": "shipped default models", "filter_seed": 0},
+        "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
+        "summary": summary, "per_recording": per_recording,
+        "speed": speed(models, load_demonstrations(ensure_recording("paper", args.seeds[0], args.data)),
+                       args.episodes[-1]),
+    }
+    for key, s in summary.items():
+        print(f"{key:>28}: mean {s['mean']:.4g} [{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]")
+    result["environment"] = {**numeric_environment(None), "runtime_s": round(time.perf_counter() - started, 1)}
+    write_json(args.output, result)
+    print(f"wrote {args.output}")
+    return result
+
+
+if __name__ == "__main__":
+    main()
