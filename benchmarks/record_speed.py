@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from hoap_actions.envs.demonstrator import FPS
+from hoap_actions.envs.demo_tasks import FPS
 from hoap_actions.envs.recording import record
 from hoap_actions.primitives.datasets import load_demonstrations
 

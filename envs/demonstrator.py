@@ -2,7 +2,9 @@
 recorded like a VICON session (6 arm/hand markers and the block's pose at 100 Hz).
 
 Every episode is approach -> one manipulation -> remove (the paper's approach-act-remove cycle), from
-and back to rest with the arm hanging beside the chair.
+and back to rest with the arm hanging beside the chair. This module scripts the episodes and runs
+their physics; what a task and a recording are is :mod:`~hoap_actions.envs.demo_tasks`, the timing of
+every path :mod:`~hoap_actions.envs.minimum_jerk`, the planning IK :mod:`~hoap_actions.envs.arm_ik`.
 
 - Phase labels (hidden ground truth, evaluation only) follow the paper's decomposition, where a
   manipulation is what changes the object (its Fig. 7: push, move, rotate between approach and remove;
@@ -61,16 +63,24 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
-import placo
 from scipy.spatial.transform import Rotation
 
+from hoap_actions.envs.arm_ik import (
+    ARM_WEIGHT,
+    BODY_JOINTS,
+    HAND_HULL,
+    RECORDED_JOINTS,
+    SITE_OFFSETS,
+    ArmIK,
+    hand_rotation,
+)
 from hoap_actions.envs.demo_scene import HAND_LINKS, DemoScene
+from hoap_actions.envs.demo_tasks import DIRECTIONS, FPS, PHASE_NAMES, TURNS, DemoRecording, DemoTask
+from hoap_actions.envs.minimum_jerk import bezier_length, minimum_jerk, minimum_jerk_curve
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.urdf import urdf_path
 
 logger = logging.getLogger(__name__)
 
-FPS = 100  # Hz, recorded frames (like the VICON system)
 MARKER_LINKS = (
     "marker_shoulder",
     "marker_elbow",
@@ -79,33 +89,6 @@ MARKER_LINKS = (
     "marker_index_knuckle",
     "marker_thumb_tip",
 )
-MARKER_NAMES = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
-BODY_JOINTS = (
-    "lumbar_flexion",
-    "lumbar_bend",
-    "lumbar_rotation",
-    "r_shoulder_flexion",
-    "r_shoulder_abduction",
-    "r_shoulder_rotation",
-    "r_elbow",
-    "r_forearm_pronation",
-    "r_wrist_flexion",
-    "r_wrist_deviation",
-)
-FINGER_JOINTS = ("r_index_mcp", "r_thumb_cmc")
-RECORDED_JOINTS = BODY_JOINTS + FINGER_JOINTS  # every joint of the demonstrator that moves, in Q's column order
-DIRECTIONS = {"left": (0.0, 1.0), "right": (0.0, -1.0), "forward": (1.0, 0.0), "backward": (-1.0, 0.0)}
-"""Push/move directions in the scene frame: left = +y, right = -y, forward = +x (away from the
-demonstrator; the paper's "up"), backward = -x (towards them; "down")."""
-TURNS = {"ccw": 1.0, "cw": -1.0}  # rotate directions, seen from above
-ACTIONS = ("push", "move", "rotate", "approach")
-PHASE_NAMES = ("approach", *(f"push-{d}" for d in DIRECTIONS), *(f"move-{d}" for d in DIRECTIONS), "rotate", "remove")
-"""Phase label table: a frame's label code indexes this tuple."""
-LABELS_VERSION = 2
-"""Which frames get which phase label (module docstring). 1 (datasets without ``labels_version``): the
-grasp, the hold and release after a carry or turn, the push path's initial gap and the push's ease-off
-were labelled with the manipulation. 2: the grasp and the initial gap are approach, letting go is remove."""
-
 REST_POSTURE = dict.fromkeys(BODY_JOINTS, 0.0) | {
     "r_shoulder_flexion": -0.1,
     "r_shoulder_abduction": 0.12,
@@ -140,15 +123,6 @@ GRASP_HEIGHT = 0.003  # m, the pinch point sits this far above the block's centr
 PUSH_GAP = 0.015  # m, planned gap between hand and block before a push
 TABLE_MARGIN = 0.015  # m, a planned reach keeps the hand this far from the table top's edge
 BLOCK_MARGIN = 0.005  # m, ... and this far from the block, except near its ends
-
-# Hand geometry in the palm link frame (x radial, y palmar, z from the fingers to the wrist)
-_SITE_OFFSETS = {"palm_site": np.array([0.0, 0.0, -0.05]), "grasp_site": np.array([0.022, 0.065, -0.066])}
-_HAND_HULL = np.array(
-    [[x, y, z] for x in (-0.0425, 0.0425) for y in (-0.015, 0.015) for z in (0.0, -0.10)]
-    + [[x, y, z] for x in (-0.0425, 0.005) for y in (-0.01, 0.01) for z in (-0.10, -0.175)]
-    + [[x, y, -0.184] for x in (0.013, 0.031) for y in (-0.009, 0.009)]
-)
-"""Corners bounding the straight hand's collision shapes (palm, other fingers, index): a pushing hand."""
 _SIDE_PUSH = ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -0.08))
 """Push left/right: (fingers, back of the hand, contact point in the palm frame): fingers forward, thumb
 up; the palm pushes left, the back of the hand right. The contact point meets the block face's centre."""
@@ -160,209 +134,11 @@ _FRONT_PUSHES = (
 )
 """Push forward/backward candidates, thumb up: the one most comfortable where the block is is used
 (palm to the body on the left of the shoulder, palm forward on its right, as people do)."""
-_FINGER_RADIUS = 0.01  # m, finger radius with a little margin, for the table-clearance check
 
-# Controller and IK settings
+# Controller and choreography settings
 POSITION_GAIN, VELOCITY_GAIN = 0.8, 1.0
-IK_ITERATIONS = 3
-IK_RANGES = {"r_elbow": (0.3, 2.4), "r_shoulder_abduction": (-0.7, 1.3)}
-"""rad, joint ranges of the IK narrower than the joints': a locked elbow and a shoulder abducted to 90
-degrees (gimbal lock of flexion and rotation) are singular and make the solution jump."""
-REGULARISATION = 1e-4  # weight of the IK's joint-velocity penalty, damps null-space drift
-WAIST_WEIGHT, ARM_WEIGHT, ARM_WEIGHT_AT_REST = 3e-3, 1e-4, 3e-3
+ARM_WEIGHT_AT_REST = 3e-3  # arm posture weight once the hand is back at rest (the arm settles there)
 ORIENTATION_WEIGHT = 1.0
-
-
-@dataclass(frozen=True)
-class DemoTask:
-    """One episode to perform: the action, its parameters and where the block starts.
-
-    ``direction`` is a key of :data:`DIRECTIONS` for push/move, of :data:`TURNS` for rotate, ``""`` for
-    approach; ``distance`` (m) is for push/move, ``angle`` (rad, > 0) for rotate. ``grid`` and
-    ``grid_index`` (row, column) name an approach-grid location, ``repetition`` counts repeats.
-    """
-
-    action: str
-    object_xy: tuple[float, float]
-    object_yaw: float = 0.0
-    direction: str = ""
-    distance: float = 0.0
-    angle: float = 0.0
-    repetition: int = 0
-    grid: str = ""
-    grid_index: tuple[int, int] = (-1, -1)
-
-    def __post_init__(self) -> None:
-        if self.action not in ACTIONS:
-            raise InvalidInputError(f"action must be one of {ACTIONS}; got {self.action!r}")
-        allowed = {"push": DIRECTIONS, "move": DIRECTIONS, "rotate": TURNS, "approach": {"": None}}[self.action]
-        if self.direction not in allowed:
-            raise InvalidInputError(f"a {self.action} takes direction in {sorted(allowed)}; got {self.direction!r}")
-        if self.action in ("push", "move") and not 0.0 < self.distance <= 0.30:
-            raise InvalidInputError(f"a {self.action} distance must be in (0, 0.30] m; got {self.distance}")
-        if self.action == "rotate" and not 0.0 < self.angle <= np.pi / 2:
-            raise InvalidInputError(f"a rotate angle must be in (0, pi/2] rad; got {self.angle}")
-        if len(self.object_xy) != 2 or not np.all(np.isfinite(self.object_xy)) or not np.isfinite(self.object_yaw):
-            raise InvalidInputError(f"object_xy must be 2 finite numbers; got {self.object_xy}")
-
-    @property
-    def phase(self) -> str:
-        """The manipulation's phase label (``"push-left"``, ``"rotate"``, ...; ``"approach"`` for a bare approach)."""
-        return {"push": f"push-{self.direction}", "move": f"move-{self.direction}", "rotate": "rotate"}.get(
-            self.action, "approach"
-        )
-
-    def target_pose(self, start: np.ndarray) -> np.ndarray:
-        """The block pose (6,) the action aims at from ``start`` (position m + rotation vector rad)."""
-        target = np.array(start, float)
-        if self.action in ("push", "move"):
-            target[:2] += self.distance * np.array(DIRECTIONS[self.direction])
-        elif self.action == "rotate":
-            turn = Rotation.from_euler("z", TURNS[self.direction] * self.angle)
-            target[3:] = (turn * Rotation.from_rotvec(start[3:])).as_rotvec()
-        return target
-
-
-@dataclass(frozen=True)
-class DemoRecording:
-    """What one performed episode produced (scene frame, SI units).
-
-    ``H`` (T, 6, 3) markers in :data:`MARKER_NAMES` order; ``O`` (T, 6) block position + rotation vector;
-    ``labels`` (T,) codes into :data:`PHASE_NAMES`; ``object_target`` (6,) the intended end pose;
-    ``hand_rest`` (3,) the palm centre at rest before the approach; ``grasped`` whether a grasp
-    constraint was made; ``table_contact_frames`` frames in which the hand touched the table; ``Q``
-    (T, J) the joint angles of :data:`RECORDED_JOINTS` (rad), which pose the body for a camera.
-    """
-
-    H: np.ndarray
-    O: np.ndarray
-    labels: np.ndarray
-    object_target: np.ndarray
-    hand_rest: np.ndarray
-    Q: np.ndarray
-    grasped: bool = False
-    table_contact_frames: int = 0
-
-
-def minimum_jerk(tau: np.ndarray) -> np.ndarray:
-    """Minimum-jerk progress ``10 t^3 - 15 t^4 + 6 t^5`` of normalised time ``tau`` (clipped to [0, 1])."""
-    t = np.clip(np.asarray(tau, float), 0.0, 1.0)
-    return t**3 * (10.0 - 15.0 * t + 6.0 * t**2)
-
-
-def minimum_jerk_curve(control: np.ndarray, n: int) -> np.ndarray:
-    """``n`` points (n, 3) along the cubic Bezier curve with ``control`` points (4, 3), at times
-    ``k / n`` (k = 1..n) of a minimum-jerk motion: arc length, not the Bezier parameter, follows the
-    minimum-jerk profile, so the speed is bell-shaped whatever the control points."""
-    control = np.asarray(control, float)
-    s = np.linspace(0.0, 1.0, 513)[:, None]
-    weights = np.hstack([(1 - s) ** 3, 3 * (1 - s) ** 2 * s, 3 * (1 - s) * s**2, s**3])
-    dense = weights @ control
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
-    if arc[-1] < 1e-9:
-        return np.repeat(control[-1:], n, axis=0)
-    wanted = arc[-1] * minimum_jerk(np.arange(1, n + 1) / n)
-    return np.column_stack([np.interp(wanted, arc, dense[:, i]) for i in range(3)])
-
-
-def hand_rotation(fingers: np.ndarray, dorsal: np.ndarray) -> Rotation:
-    """Palm-link orientation whose fingers point along ``fingers`` and whose back faces ``dorsal``
-    (world vectors; ``dorsal`` is made orthogonal to ``fingers``)."""
-    f = np.asarray(fingers, float) / np.linalg.norm(fingers)
-    d = np.asarray(dorsal, float) - np.dot(dorsal, f) * f
-    d /= np.linalg.norm(d)
-    r = np.cross(d, f)  # radial (thumb) side
-    return Rotation.from_matrix(np.column_stack([r, -d, -f]))
-
-
-class ArmIK:
-    """placo kinematics of the demonstrator, base fixed at ``base_position`` (scene frame, no rotation).
-
-    One :meth:`solve` call moves the model's joints a few velocity-limited QP steps towards a site
-    pose: called once per frame along a smooth path it tracks the path.
-    """
-
-    def __init__(self, base_position: np.ndarray) -> None:
-        self.base = np.asarray(base_position, float)
-        self.robot = placo.RobotWrapper(str(urdf_path("human_arm.urdf")), placo.Flags.ignore_collisions)
-        for name, (low, high) in IK_RANGES.items():
-            self.robot.set_joint_limits(name, low, high)
-        solver = placo.KinematicsSolver(self.robot)
-        solver.mask_fbase(True)
-        for name in FINGER_JOINTS:
-            solver.mask_dof(name)  # the fingers are scripted, not solved
-        solver.enable_velocity_limits(True)
-        solver.dt = 1.0 / (FPS * IK_ITERATIONS)
-        self.waist_task = solver.add_joints_task()
-        self.waist_task.set_joints({name: 0.0 for name in BODY_JOINTS[:3]})
-        self.waist_task.configure("waist", "soft", WAIST_WEIGHT)
-        self.arm_task = solver.add_joints_task()
-        self.arm_task.configure("arm", "soft", ARM_WEIGHT)
-        solver.add_regularization_task(REGULARISATION)
-        self.position = {site: solver.add_position_task(site, np.zeros(3)) for site in _SITE_OFFSETS}
-        self.orientation = {site: solver.add_orientation_task(site, np.eye(3)) for site in _SITE_OFFSETS}
-        self.solver = solver
-        self._site = ""
-
-    def reset(self, posture: dict[str, float]) -> None:
-        """Put the model in ``posture`` (joint name -> rad; missing joints 0)."""
-        self.robot.reset()
-        for name, value in posture.items():
-            self.robot.set_joint(name, value)
-        self.robot.update_kinematics()
-
-    @property
-    def q(self) -> np.ndarray:
-        """The model's full configuration (a copy), for :meth:`restore`."""
-        return self.robot.state.q.copy()
-
-    def restore(self, q: np.ndarray) -> None:
-        self.robot.state.q = q
-        self.robot.update_kinematics()
-
-    def site_pose(self, site: str) -> tuple[np.ndarray, Rotation]:
-        """Scene-frame position and orientation (of the palm link) of ``site`` in the model's posture."""
-        T = self.robot.get_T_world_frame(site)
-        return T[:3, 3] + self.base, Rotation.from_matrix(T[:3, :3])
-
-    def hand_points(self) -> np.ndarray:
-        """Scene-frame points (N, 3) bounding the hand's collision shapes in the model's posture, the
-        fingertips widened by their radius."""
-        T = self.robot.get_T_world_frame("r_palm")
-        palm = _HAND_HULL[:16] @ T[:3, :3].T + T[:3, 3]
-        tips = np.array([self.robot.get_T_world_frame(f"marker_{name}_tip")[:3, 3] for name in ("index", "thumb")])
-        widen = _FINGER_RADIUS * np.vstack([np.eye(3), -np.eye(3)])
-        return np.vstack([palm, (tips[:, None, :] + widen).reshape(-1, 3)]) + self.base
-
-    def solve(
-        self,
-        site: str,
-        position: np.ndarray,
-        rotation: Rotation,
-        orientation_weight: float,
-        arm_posture: np.ndarray,
-        arm_weight: float,
-        fingers: np.ndarray,
-    ) -> np.ndarray:
-        """Joint angles (10,) of :data:`BODY_JOINTS` moving ``site`` towards ``position`` (scene frame, m)
-        with the palm towards ``rotation``; ``arm_posture`` (7,) is the arm's regularisation target and
-        ``fingers`` (2,) the finger angles set in the model (for :meth:`hand_points`)."""
-        if site != self._site:
-            for name in _SITE_OFFSETS:
-                self.position[name].configure(f"{name}_position", "soft", 1.0 if name == site else 0.0)
-                self.orientation[name].configure(f"{name}_orientation", "soft", 0.0)
-            self._site = site
-        for name, value in zip(FINGER_JOINTS, fingers):
-            self.robot.set_joint(name, float(value))
-        self.position[site].target_world = np.asarray(position, float) - self.base
-        self.orientation[site].R_world_frame = rotation.as_matrix()
-        self.orientation[site].configure(f"{site}_orientation", "soft", float(orientation_weight))
-        self.arm_task.set_joints(dict(zip(BODY_JOINTS[3:], map(float, arm_posture))))
-        self.arm_task.configure("arm", "soft", float(arm_weight))
-        for _ in range(IK_ITERATIONS):
-            self.solver.solve(True)
-            self.robot.update_kinematics()
-        return np.array([self.robot.get_joint(name) for name in BODY_JOINTS])
 
 
 @dataclass
@@ -414,7 +190,7 @@ class Demonstrator:
         self._lift_arm = np.array([LIFT_POSTURE[name] for name in BODY_JOINTS[3:]])
         self._phase_codes = {name: code for code, name in enumerate(PHASE_NAMES)}
         self.ik.reset(REST_POSTURE)
-        self._rest_sites = {site: self.ik.site_pose(site) for site in _SITE_OFFSETS}
+        self._rest_sites = {site: self.ik.site_pose(site) for site in SITE_OFFSETS}
         # per-episode state, set by perform()
         self._grasp: int | None = None
         self._grasped = False
@@ -506,8 +282,8 @@ class Demonstrator:
         ``u``: the pushing face :data:`PUSH_GAP` from the block's, the ``contact`` point (palm frame) in
         line with the face's centre, the hand's lowest point :data:`HAND_CLEARANCE` above the table."""
         rotation = hand_rotation(fingers, dorsal)
-        offsets = rotation.apply(_HAND_HULL - _SITE_OFFSETS["palm_site"])
-        contact_offset = rotation.apply(np.array(contact) - _SITE_OFFSETS["palm_site"])
+        offsets = rotation.apply(HAND_HULL - SITE_OFFSETS["palm_site"])
+        contact_offset = rotation.apply(np.array(contact) - SITE_OFFSETS["palm_site"])
         tangent = np.array([-u[1], u[0], 0.0])
         relative_yaw = Rotation.from_rotvec(start[3:]).as_euler("zyx")[0] - np.arctan2(u[1], u[0])
         extent = self.scene.config.object_size / 2.0 * (abs(np.cos(relative_yaw)) + abs(np.sin(relative_yaw)))
@@ -573,7 +349,7 @@ class Demonstrator:
         control[1:3] += np.clip(self._rng.normal(0.0, 0.015, (2, 3)), -0.03, 0.03)
 
         def plan(control: np.ndarray) -> _Segment:
-            n = self._frames(0.75 + 0.45 * _length(control))
+            n = self._frames(0.75 + 0.45 * bezier_length(control))
             tau = np.arange(1, n + 1) / n
             blend = minimum_jerk(tau)[:, None]
             segment = _Segment(
@@ -602,7 +378,7 @@ class Demonstrator:
         fingers_now = self._q[-2:]
 
         def plan(control: np.ndarray) -> _Segment:
-            n = self._frames(0.75 + 0.45 * _length(control))
+            n = self._frames(0.75 + 0.45 * bezier_length(control))
             tau = np.arange(1, n + 1) / n
             blend = minimum_jerk(tau)[:, None]
             return _Segment(
@@ -784,6 +560,3 @@ class Demonstrator:
         return max(2, int(round(duration * self._speed * jitter * FPS)))
 
 
-def _length(control: np.ndarray) -> float:
-    """Arc length (m) of the cubic Bezier curve with ``control`` points (4, 3)."""
-    return float(np.linalg.norm(np.diff(minimum_jerk_curve(control, 64), axis=0), axis=1).sum())

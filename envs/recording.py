@@ -18,7 +18,7 @@ Each frame's hidden phase label (``ground_truth/labels``) is the part of the dem
 executes, in the paper's decomposition: the grasp and the hand closing the last gap to a block it
 pushes are approach, letting go is remove, only what changes the block is the manipulation (see
 :mod:`hoap_actions.envs.demonstrator`). The ``generator`` attribute records ``labels_version``
-(:data:`~hoap_actions.envs.demonstrator.LABELS_VERSION`); datasets recorded before it existed lack
+(:data:`~hoap_actions.envs.demo_tasks.LABELS_VERSION`); datasets recorded before it existed lack
 the key and use labelling 1, in which the grasp and release belonged to the manipulation.
 """
 
@@ -33,18 +33,18 @@ import numpy as np
 from tqdm import tqdm
 
 from hoap_actions.envs.demo_scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
-from hoap_actions.envs.demonstrator import (
+from hoap_actions.envs.arm_ik import RECORDED_JOINTS
+from hoap_actions.envs.demo_tasks import (
     DIRECTIONS,
     FPS,
     LABELS_VERSION,
     MARKER_NAMES,
     PHASE_NAMES,
-    RECORDED_JOINTS,
     TURNS,
-    Demonstrator,
     DemoRecording,
     DemoTask,
 )
+from hoap_actions.envs.demonstrator import Demonstrator
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_file
 from hoap_actions.primitives.datasets import Demonstrations, Episode, GroundTruth, write_hdf5

@@ -10,16 +10,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs.demo_scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
-from hoap_actions.envs.demonstrator import (
-    DIRECTIONS,
-    LABELS_VERSION,
-    MARKER_LINKS,
-    PHASE_NAMES,
-    PLACE_CLEARANCE,
-    Demonstrator,
-    DemoTask,
-    minimum_jerk_curve,
-)
+from hoap_actions.envs.demo_tasks import DIRECTIONS, LABELS_VERSION, PHASE_NAMES, DemoTask
+from hoap_actions.envs.demonstrator import MARKER_LINKS, PLACE_CLEARANCE, Demonstrator
+from hoap_actions.envs.minimum_jerk import minimum_jerk_curve
 from hoap_actions.envs.recording import GRIDS, preset_tasks, record
 from hoap_actions.envs.world import (
     HUMAN_TO_ROBOT_SCALE,

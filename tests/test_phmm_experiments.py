@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from hoap_actions.envs.demo_scene import DemoScene
-from hoap_actions.envs.demonstrator import PHASE_NAMES, Demonstrator, DemoTask
+from hoap_actions.envs.demo_tasks import PHASE_NAMES, DemoTask
+from hoap_actions.envs.demonstrator import Demonstrator
 from hoap_actions.primitives.parametric_hmm import ParametricHMM, recognize
 from hoap_actions.primitives.trajectory_metrics import dtw_average, warped_rms_error
 
