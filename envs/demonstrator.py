@@ -135,6 +135,26 @@ _FRONT_PUSHES = (
 """Push forward/backward candidates, thumb up: the one most comfortable where the block is is used
 (palm to the body on the left of the shoulder, palm forward on its right, as people do)."""
 
+# Timing: a segment's nominal duration (s), before the episode's and the segment's speed factors
+EPISODE_SPEED_RANGE = (0.87, 1.13)  # per-episode speed factor; with +-5 % per segment, about +-15 %
+REACH_S, REACH_S_PER_M = 0.75, 0.45  # a reach (approach or remove): 0.75 s plus 0.45 s per metre of path
+PUSH_S, PUSH_S_PER_M = 0.5, 3.0  # a push: slower per metre, the hand keeps contact with the block
+CARRY_S, CARRY_S_PER_M = 0.7, 2.5  # a carry (move)
+TURN_S, TURN_S_PER_RAD = 0.6, 0.5  # a rotate
+PINCH_CLOSE_S, PINCH_OPEN_S = 0.35, 0.3  # the fingers closing on and opening off the block
+SETTLE_S = 0.15  # hand still on the block after a grasping approach, before the fingers close
+LET_GO_S = 0.1  # hand still before and after the fingers open
+REST_HOLD_S = 0.25  # at rest after the remove
+
+# Reach geometry (scene frame, m): via points of the Bezier path out of and back to the hanging pose
+RISE_FORWARD, RISE_SHARE_OF_Y, RISE_HEIGHT = 0.02, 0.3, 0.25  # first via point: up beside the body, a third across
+ABOVE_TARGET = 0.14  # second via point: this high over the target (offset 5 cm along the descent side)
+DESCEND_OFFSET = 0.05
+LEAVE_AWAY, LEAVE_HEIGHT = 0.03, 0.18  # the remove's first via point: off the block and up
+VIA_JITTER, VIA_JITTER_LIMIT = 0.015, 0.03  # trial-to-trial spread of via points (std, clip)
+REST_JITTER, REST_JITTER_LIMIT = 0.006, 0.01  # ... of the rest pose the remove returns to
+CARRY_LIFT_RANGE = (0.08, 0.11)  # m, how high a carried block is lifted
+
 # Controller and choreography settings
 POSITION_GAIN, VELOCITY_GAIN = 0.8, 1.0
 ARM_WEIGHT_AT_REST = 3e-3  # arm posture weight once the hand is back at rest (the arm settles there)
@@ -211,7 +231,7 @@ class Demonstrator:
         self._grasp, self._grasped = None, False
         self._tape = _Tape()
         self._rng = rng
-        self._speed = float(rng.uniform(0.87, 1.13))  # with +-5 % per segment: about +-15 %
+        self._speed = float(rng.uniform(*EPISODE_SPEED_RANGE))
         start = self.scene.object_pose()
         self._record("approach")
         away = np.zeros(3)
@@ -219,7 +239,7 @@ class Demonstrator:
             away = self._push(task, start)
         elif task.action == "approach":
             self._reach("grasp_site", *self._grasp_pose(start, 0.0, np.zeros(3), forward=True), FINGERS_OPEN)
-            self._hold(0.15, "approach")
+            self._hold(SETTLE_S, "approach")
         else:
             self._grasp_and_carry(task, start)
         self._remove(away)
@@ -263,7 +283,7 @@ class Demonstrator:
             logger.warning("push: the hand ended its approach %.3f m from the block, not ~%.3f m", gap, PUSH_GAP)
             gap = PUSH_GAP
         travel = gap + task.distance + rng.normal(0.0, 0.001)
-        n = self._frames(0.5 + 3.0 * travel)
+        n = self._frames(PUSH_S + PUSH_S_PER_M * travel)
         progress = travel * minimum_jerk(np.arange(1, n + 1) / n)
         path = target + u * progress[:, None]
         touch = int(np.searchsorted(progress, gap, side="right"))  # the first frame past the gap
@@ -313,28 +333,28 @@ class Demonstrator:
         shift = task.distance * np.array([*DIRECTIONS[task.direction], 0.0]) if task.action == "move" else np.zeros(3)
         position, rotation = self._grasp_pose(start, turn, shift)
         self._reach("grasp_site", position, rotation, FINGERS_OPEN)
-        self._fingers(FINGERS_OPEN, FINGERS_PINCH, 0.35, "approach", watch_grasp=True)
+        self._fingers(FINGERS_OPEN, FINGERS_PINCH, PINCH_CLOSE_S, "approach", watch_grasp=True)
         pinch = self._q[-2:].copy()  # where the guarded close stopped
         if task.action == "move":
             end = position + np.array([*DIRECTIONS[task.direction], 0.0]) * task.distance
             end[:2] += np.clip(rng.normal(0.0, 0.001, 2), -0.002, 0.002)
             end[2] = position[2] + PLACE_CLEARANCE
-            lift = np.array([0.0, 0.0, rng.uniform(0.08, 0.11)])
-            n = self._frames(0.7 + 2.5 * task.distance)
+            lift = np.array([0.0, 0.0, rng.uniform(*CARRY_LIFT_RANGE)])
+            n = self._frames(CARRY_S + CARRY_S_PER_M * task.distance)
             path = minimum_jerk_curve([position, position + lift, end + lift, end], n)
             self._run(self._segment(task.phase, "grasp_site", path, [rotation] * n, pinch))
         else:  # rotate: raised 2 mm off the table, turned about the vertical through the block
-            n = self._frames(0.6 + 0.5 * task.angle)
+            n = self._frames(TURN_S + TURN_S_PER_RAD * task.angle)
             tau = np.arange(1, n + 1) / n
             path = position + np.outer(minimum_jerk(4.0 * tau), [0.0, 0.0, PLACE_CLEARANCE])
             turns = Rotation.from_rotvec(np.outer(turn * minimum_jerk(tau), [0.0, 0.0, 1.0])) * rotation
             self._run(self._segment(task.phase, "grasp_site", path, list(turns), pinch))
-        self._hold(0.1, "remove")
+        self._hold(LET_GO_S, "remove")
         if self._grasp is not None:
             self.sim.detach(self._grasp)
             self._grasp = None
-        self._fingers(pinch, FINGERS_OPEN, 0.3, "remove")
-        self._hold(0.1, "remove")
+        self._fingers(pinch, FINGERS_OPEN, PINCH_OPEN_S, "remove")
+        self._hold(LET_GO_S, "remove")
 
     def _reach(
         self, site: str, target: np.ndarray, rotation: Rotation, fingers: np.ndarray,
@@ -343,13 +363,13 @@ class Demonstrator:
         """Approach from rest: up out of the hanging pose, over the table edge, down onto ``target``
         (from above, offset 5 cm along ``descend_from``: a pushing hand comes down beside the block)."""
         start = self._rest_sites[site][0]
-        first = np.array([start[0] + 0.02, start[1] + 0.3 * (target[1] - start[1]), 0.25])
-        above = target + 0.05 * np.asarray(descend_from) + np.array([0.0, 0.0, 0.14])
+        first = np.array([start[0] + RISE_FORWARD, start[1] + RISE_SHARE_OF_Y * (target[1] - start[1]), RISE_HEIGHT])
+        above = target + DESCEND_OFFSET * np.asarray(descend_from) + np.array([0.0, 0.0, ABOVE_TARGET])
         control = np.array([start, first, above, target])
-        control[1:3] += np.clip(self._rng.normal(0.0, 0.015, (2, 3)), -0.03, 0.03)
+        control[1:3] += np.clip(self._rng.normal(0.0, VIA_JITTER, (2, 3)), -VIA_JITTER_LIMIT, VIA_JITTER_LIMIT)
 
         def plan(control: np.ndarray) -> _Segment:
-            n = self._frames(0.75 + 0.45 * bezier_length(control))
+            n = self._frames(REACH_S + REACH_S_PER_M * bezier_length(control))
             tau = np.arange(1, n + 1) / n
             blend = minimum_jerk(tau)[:, None]
             segment = _Segment(
@@ -370,15 +390,16 @@ class Demonstrator:
         """Back to the hanging rest pose (end point jittered ~1 cm), the posture pulled back to rest;
         the hand first rises and leaves along ``away`` (a unit vector; zero after a grasp)."""
         site, (position, rotation) = self._site, self._target
-        end = self._rest_sites[site][0] + np.clip(self._rng.normal(0.0, 0.006, 3), -0.01, 0.01)
-        first = position + 0.03 * away + np.array([0.0, 0.0, 0.18])
-        second = np.array([end[0] + 0.02, end[1] + 0.3 * (position[1] - end[1]), 0.25])
+        end = self._rest_sites[site][0] + np.clip(self._rng.normal(0.0, REST_JITTER, 3), -REST_JITTER_LIMIT,
+                                                  REST_JITTER_LIMIT)
+        first = position + LEAVE_AWAY * away + np.array([0.0, 0.0, LEAVE_HEIGHT])
+        second = np.array([end[0] + RISE_FORWARD, end[1] + RISE_SHARE_OF_Y * (position[1] - end[1]), RISE_HEIGHT])
         control = np.array([position, first, second, end])
-        control[1:3] += np.clip(self._rng.normal(0.0, 0.015, (2, 3)), -0.03, 0.03)
+        control[1:3] += np.clip(self._rng.normal(0.0, VIA_JITTER, (2, 3)), -VIA_JITTER_LIMIT, VIA_JITTER_LIMIT)
         fingers_now = self._q[-2:]
 
         def plan(control: np.ndarray) -> _Segment:
-            n = self._frames(0.75 + 0.45 * bezier_length(control))
+            n = self._frames(REACH_S + REACH_S_PER_M * bezier_length(control))
             tau = np.arange(1, n + 1) / n
             blend = minimum_jerk(tau)[:, None]
             return _Segment(
@@ -390,7 +411,7 @@ class Demonstrator:
             )
 
         self._run_clear(plan, control, body_side=2)
-        self._hold(0.25, "remove")
+        self._hold(REST_HOLD_S, "remove")
 
     # ------------------------------------------------------------------ building blocks
     def _grasp_pose(
