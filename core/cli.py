@@ -137,7 +137,7 @@ def _collect(args: argparse.Namespace) -> int:
 def _record(args: argparse.Namespace) -> int:
     from hoap_actions.envs.recording import record
 
-    path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite)
+    path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite, workers=args.workers)
     print(f"wrote {path}")
     return 0
 
@@ -270,6 +270,8 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--preset", required=True, choices=["paper", "approach-grid", "small"])
     rec.add_argument("--out", type=_path, required=True, help="dataset file to write (.h5)")
     rec.add_argument("--seed", type=_seed, default=0)
+    rec.add_argument("--workers", type=_positive_int, default=1,
+                     help="processes sharing the episodes; the file is the same byte for byte (default: 1)")
     rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
     rec.set_defaults(func=_record)
 

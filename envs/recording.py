@@ -24,9 +24,12 @@ the key and use labelling 1, in which the grasp and release belonged to the mani
 
 from __future__ import annotations
 
+import atexit
 import logging
+import multiprocessing
 import sys
-from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -143,36 +146,73 @@ def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) ->
     return Episode(H=recording.H, O=recording.O, ground_truth=truth, seed=(seed, index + 1), Q=recording.Q)
 
 
-def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True) -> Path:
+def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True,
+           workers: int = 1) -> Path:
     """Record every episode of ``preset`` and write them to the HDF5 file ``out`` (see
     :mod:`hoap_actions.primitives.datasets`); returns ``out``.
 
     ``out`` is claimed before the first episode (:func:`hoap_actions.outputs.claimed_file`): a bad
     path, an existing file (unless ``overwrite``) or another run writing it fails at once, not after
-    the recording. The progress bar shows only when stderr is a terminal.
+    the recording. The progress bar shows only when stderr is a terminal. ``workers`` processes share
+    the episodes; every episode draws from its own ``(seed, index)`` generator in a freshly restored
+    scene, so the file is the same byte for byte whatever their number.
     """
     check_seed(seed)
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise InvalidInputError(f"workers must be an int >= 1; got {workers!r}")
     tasks = preset_tasks(preset, seed)
     with claimed_file(out, overwrite, what="dataset") as partial:
-        demos = _record_tasks(preset, tasks, seed, progress)
+        demos = _record_tasks(preset, tasks, seed, progress, int(workers))
         write_hdf5(partial, demos)
     logger.info("recorded %d episodes (%d frames) of preset %r", len(demos), sum(e.T for e in demos), preset)
     return Path(out)
 
 
-def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool) -> Demonstrations:
+_WORKER: dict = {}
+
+
+def _start_worker() -> None:
+    """A worker process's own scene and demonstrator, closed when the process ends."""
+    scene = DemoScene()
+    atexit.register(scene.close)
+    _WORKER.update(demonstrator=Demonstrator(scene))
+
+
+def _perform(job: tuple[DemoTask, int, int]) -> DemoRecording:
+    task, seed, index = job
+    return _WORKER["demonstrator"].perform(task, np.random.default_rng([seed, index + 1]))
+
+
+def _recordings(tasks: list[DemoTask], seed: int, workers: int) -> Iterator[DemoRecording]:
+    """Each task performed, in order: here, or spread over ``workers`` spawned processes."""
+    jobs = [(task, seed, index) for index, task in enumerate(tasks)]
+    if workers == 1:
+        scene = DemoScene()
+        try:
+            demonstrator = Demonstrator(scene)
+            for task, _, index in jobs:
+                yield demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
+        finally:
+            scene.close()
+        return
+    context = multiprocessing.get_context("spawn")  # PyBullet and placo do not survive a fork
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_worker) as pool:
+        yield from pool.map(_perform, jobs)
+
+
+def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1) -> Demonstrations:
+    episodes, table_contacts, missed_grasps = [], [], []
+    performed = _recordings(tasks, seed, workers)
+    bar = tqdm(performed, total=len(tasks), desc=f"recording {preset}", unit="episode",
+               disable=not (progress and sys.stderr.isatty()))
+    for index, (task, recording) in enumerate(zip(tasks, bar)):
+        episodes.append(_episode(task, recording, seed, index))
+        if recording.table_contact_frames:
+            table_contacts.append(index)
+        if task.action in ("move", "rotate") and not recording.grasped:
+            missed_grasps.append(index)
     scene = DemoScene()
     try:
-        demonstrator = Demonstrator(scene)
-        episodes, table_contacts, missed_grasps = [], [], []
-        bar = tqdm(tasks, desc=f"recording {preset}", unit="episode", disable=not (progress and sys.stderr.isatty()))
-        for index, task in enumerate(bar):
-            recording = demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
-            episodes.append(_episode(task, recording, seed, index))
-            if recording.table_contact_frames:
-                table_contacts.append(index)
-            if task.action in ("move", "rotate") and not recording.grasped:
-                missed_grasps.append(index)
         scene_parameters = scene.parameters()
     finally:
         scene.close()

@@ -196,6 +196,15 @@ def test_same_seed_same_dataset(small, tmp_path):
     assert small.generator["table_contact_episodes"] == [] and small.generator["missed_grasp_episodes"] == []
 
 
+def test_workers_record_the_same_file_byte_for_byte(tmp_path):
+    one = record("small", tmp_path / "one.h5", seed=4, progress=False)
+    two = record("small", tmp_path / "two.h5", seed=4, progress=False, workers=2)
+    assert one.read_bytes() == two.read_bytes()
+    with pytest.raises(InvalidInputError, match="workers must be an int >= 1"):
+        record("small", tmp_path / "none.h5", workers=0)
+    assert not (tmp_path / "none.h5").exists()
+
+
 def test_record_refuses_to_overwrite(tmp_path):
     path = tmp_path / "taken.h5"
     path.write_bytes(b"")
