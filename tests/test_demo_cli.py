@@ -23,3 +23,15 @@ def test_a_missing_models_directory_is_one_line_before_any_worker_starts(tmp_pat
     assert main(["demo", "--policy", "phmm", "--models", str(tmp_path / "none"), "--episodes", "2",
                  "--workers", "2"]) == 2
     assert "no models directory" in capsys.readouterr().err
+
+
+def test_the_json_is_the_same_file_whatever_the_number_of_workers(tmp_path, capsys):
+    outputs = []
+    for workers in ("1", "2"):
+        out = tmp_path / f"w{workers}.json"
+        assert main(["demo", "--policy", "scripted", "--episodes", "3", "--seed", "1000", "--workers", workers,
+                     "--json", str(out)]) == 0
+        outputs.append(out.read_bytes())
+    assert outputs[0] == outputs[1]
+    assert b"wall_s" not in outputs[0] and b'"success": true' in outputs[0]
+    assert "mean episode" in capsys.readouterr().out
