@@ -25,9 +25,11 @@ JOINT_DELTA_JOINTS = (
 class JointDeltaController:
     """``"joint_delta"``: action in [-1, 1]^7 moves the waist and right-arm joint targets by up to 0.05 rad.
 
-    Order: waist pitch, right shoulder pitch / roll / yaw, elbow, hand torsion, gripper. The legs,
-    head and left arm hold their home posture. A target beyond a joint's range is held at the range
-    limit, as a servo would, and ``last_clipped`` (reported as ``info["target_clipped"]``) says so.
+    Order: waist pitch, right shoulder pitch / roll / yaw, elbow, hand torsion, gripper. Episodes begin
+    in :func:`~hoap_actions.controllers.hand_control.start_posture`, as ee_delta ones do (in the home
+    posture the right forearm lay on a peg after half the resets); the legs, head and left arm hold it.
+    A target beyond a joint's range is held at the range limit, as a servo would, and ``last_clipped``
+    (reported as ``info["target_clipped"]``) says so.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -36,14 +38,16 @@ class JointDeltaController:
         self._indices = np.array([names.index(n) for n in JOINT_DELTA_JOINTS])
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(JOINT_DELTA_JOINTS),), dtype=np.float32)
         self.last_clipped = False
-        self._target = np.array(robot.home_posture, dtype=float)
+        self._start = start_posture(robot)
+        self._target = self._start.copy()
 
     def start_episode(self) -> None:
-        """Episodes begin in the home posture the freshly restored world already has."""
+        """On the freshly restored world, pose the robot in the posture episodes begin in."""
+        self.robot.reset(self._start)
 
     def reset(self) -> None:
-        """Controlled joints start where they are; the others hold the home posture."""
-        self._target = np.array(self.robot.home_posture, dtype=float)
+        """Controlled joints start where they are; the others hold the start posture."""
+        self._target = self._start.copy()
         self._target[self._indices] = self.robot.joint_positions()[self._indices]
         self.last_clipped = False
 
