@@ -78,9 +78,11 @@ class TrackResult:
 
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                   seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
+                  more_cameras: tuple[Camera, ...] = (),
                   progress: Callable[[int, int], None] | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
-    track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`)."""
+    track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
+    ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s."""
     if not demos.joint_names:
         raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
                                 "record it again with this version: hoap-actions record")
@@ -93,18 +95,19 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     scene = DemoScene()
     try:
         body = BodyModel(models.marker_names_, torso_base=scene.torso_base())
-        tracker = ActionTracker(models, body, camera, n_particles=particles, random_state=seed)
+        views = (camera, *more_cameras)
+        tracker = ActionTracker(models, body, views, n_particles=particles, random_state=seed)
         frames, kept, pictures, spent = [], [], [], 0.0
         for t in range(ep.T):
             scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
-            image = scene.render(camera).rgb
+            images = [scene.render(view).rgb for view in views]
             started = time.perf_counter()
-            edges = edge_image(image)
+            edges = [edge_image(image) for image in images]
             frames.append(tracker.step(edges))
             spent += time.perf_counter() - started
             if keep_images:
-                kept.append(edges)
-                pictures.append(image)
+                kept.append(edges[0])
+                pictures.append(images[0])
             if progress is not None:
                 progress(t + 1, ep.T)
     finally:
