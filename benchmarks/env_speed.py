@@ -2,9 +2,13 @@
 
 Each figure is the median of several runs, with and without rendering an ``rgb_array`` frame every
 step, for random actions (the robot often falls: many contacts) and for zero actions (it stands);
-and the median time of a ``reset``, which builds the physics world afresh every episode.
+and the median time of a ``reset``, which builds the physics world afresh every episode. With
+panda-gym installed (``pip install "hoap-actions[bench]"``), each env and control mode is also timed
+against its panda-gym peer (``PandaPickAndPlace-v3`` for PegInsert, ``PandaReach-v3`` for Reach), the two
+taking turns run after run on random actions, and the ratio of their simulated seconds per wall second
+is printed.
 
-    python benchmarks/env_speed.py [--runs 5] [--steps 300]
+    python benchmarks/env_speed.py [--runs 5] [--steps 300] [--peers-only]
 
 Printed and written to ``results/env_speed.json``; earlier figures are in ``results/NOTES.md``.
 """
@@ -27,9 +31,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json  # noqa: E402
 
 
-def time_run(env_id: str, render: bool, steps: int, seed: int, actions_kind: str) -> float:
-    """Wall seconds for ``steps`` steps of random or zero actions (reset excluded)."""
-    env = gymnasium.make(env_id, render_mode="rgb_array" if render else None)
+PEERS = {"hoap_actions/PegInsert-v0": "PandaPickAndPlace-v3", "hoap_actions/Reach-v0": "PandaReach-v3"}
+
+
+def time_run(env_id: str, render: bool, steps: int, seed: int, actions_kind: str, **kwargs) -> float:
+    """Wall seconds for ``steps`` steps of random or zero actions (reset excluded); ``kwargs`` go to ``make``."""
+    if render:
+        kwargs["render_mode"] = "rgb_array"
+    env = gymnasium.make(env_id, **kwargs)  # panda-gym refuses render_mode=None; its default draws nothing
     env.reset(seed=seed)
     env.action_space.seed(seed)
     actions = [env.action_space.sample() * (actions_kind == "random") for _ in range(steps)]
@@ -60,14 +69,45 @@ def time_resets(env_id: str, control_mode: str, n: int) -> float:
     return statistics.median(walls)
 
 
+def compare_with_peers(runs: int, steps: int, sim_seconds_per_step: float) -> list[dict]:
+    """Simulated seconds per wall second of each env and control mode against its panda-gym peer, the
+    two timed in turn ``runs`` times (random actions, no rendering); [] without panda-gym."""
+    try:
+        import panda_gym  # noqa: F401  (registers the Panda ids)
+    except ImportError:
+        print("panda-gym is not installed (pip install 'hoap-actions[bench]'): no peer comparison")
+        return []
+    out = []
+    for env_id, peer in PEERS.items():
+        probe = gymnasium.make(peer)
+        peer_sim_s = probe.unwrapped.sim.timestep * probe.unwrapped.sim.n_substeps  # per env step
+        probe.close()
+        for control_mode in ("joint_delta", "ee_delta"):
+            ours, theirs = [], []
+            for seed in range(runs):
+                ours.append(time_run(env_id, False, steps, seed, "random", control_mode=control_mode))
+                theirs.append(time_run(peer, False, steps, seed, "random"))
+            ours_rate = steps * sim_seconds_per_step / statistics.median(ours)
+            peer_rate = steps * peer_sim_s / statistics.median(theirs)
+            out.append({"env_id": env_id, "control_mode": control_mode, "peer": peer, "runs": runs, "steps": steps,
+                        "sim_s_per_wall_s": ours_rate, "peer_sim_s_per_wall_s": peer_rate,
+                        "steps_per_s": steps / statistics.median(ours),
+                        "peer_steps_per_s": steps / statistics.median(theirs), "ratio": ours_rate / peer_rate})
+            print(f"{env_id:28s} {control_mode:11s} {ours_rate:6.2f} sim s / wall s against {peer} "
+                  f"{peer_rate:6.2f}: {ours_rate / peer_rate:.2f}x")
+    return out
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("env_speed.json")])
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--peers-only", action="store_true", help="only the comparison with panda-gym")
     args = parser.parse_args(argv)
     sim_seconds_per_step = PHYSICS_STEPS_PER_ACTION * TIMESTEP
+    peers = compare_with_peers(args.runs, args.steps, sim_seconds_per_step)
     rows = []
-    for env_id in hoap_actions.ENV_IDS:
+    for env_id in () if args.peers_only else hoap_actions.ENV_IDS:
         for actions_kind, render in (("random", False), ("zero", False), ("random", True)):
             steps = args.steps if not render else max(args.steps // 5, 20)
             walls = [time_run(env_id, render, steps, seed, actions_kind) for seed in range(args.runs)]
@@ -89,12 +129,13 @@ def main(argv: list[str] | None = None) -> dict:
                 f"({row['median_physics_step_ms']:.3f} ms per physics step incl. overhead)"
             )
     resets = []
-    for env_id in hoap_actions.ENV_IDS:
+    for env_id in () if args.peers_only else hoap_actions.ENV_IDS:
         for control_mode in ("joint_delta", "ee_delta"):
             median = time_resets(env_id, control_mode, 5 * args.runs)
             resets.append({"env_id": env_id, "control_mode": control_mode, "median_reset_ms": 1e3 * median})
             print(f"{env_id:28s} {control_mode:11s} reset {1e3 * median:6.1f} ms (median of {5 * args.runs})")
-    document = {"results": rows, "resets": resets, "environment": numeric_environment(blas_threads=None)}
+    document = {"results": rows, "resets": resets, "peers": peers,
+                "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
     print(f"wrote {args.output}")
     return document
