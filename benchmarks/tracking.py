@@ -10,7 +10,7 @@ the arm held in its first pose (RMS), and the most frequent class (frame agreeme
 second of edge image + filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 /
 640 x 480 (400 particles), on one episode, rendering excluded.
 
-    python benchmarks/tracking.py [--seeds 201 202 203] [--episodes 0 13 26 ...]
+    python benchmarks/tracking.py [--seeds 201 202 203] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
 
 Recordings are ``data/paper-s<seed>.h5``, recorded when missing. Writes ``results/tracking.json``.
 """
@@ -39,10 +39,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seeds", type=int, nargs="+", default=[201, 202, 203], help="held-out paper recordings")
     parser.add_argument("--episodes", type=int, nargs="+", default=list(EPISODES))
     parser.add_argument("--particles", type=int, default=400)
+    parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
+    parser.add_argument("--noise", type=float, default=0.0, help="Gaussian image noise (share of full intensity)")
     return parser.parse_args(argv)
 
 
-def recording_figures(models, demos, episodes, particles) -> dict:
+def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
@@ -51,7 +53,7 @@ def recording_figures(models, demos, episodes, particles) -> dict:
 
     runs = []
     for index in episodes:
-        result = track_episode(models, demos, index, particles=particles, seed=0)
+        result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter, image_noise=noise)
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -107,7 +109,7 @@ def main(argv: list[str] | None = None) -> dict:
     for seed in args.seeds:
         demos = load_demonstrations(ensure_recording("paper", seed, args.data))
         print(f"paper seed {seed}:", flush=True)
-        per_recording[seed] = recording_figures(models, demos, args.episodes, args.particles)
+        per_recording[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise)
     pooled = [r["pooled"] for r in per_recording.values()]
     summary = {key: spread([p[key] for p in pooled]) for key in
                ("rms_m_all", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "baseline_frame_accuracy", "hz")}
@@ -115,6 +117,7 @@ def main(argv: list[str] | None = None) -> dict:
         summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
+                     "clutter": args.clutter, "image_noise": args.noise,
                      "models": "shipped default models", "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
         "summary": summary, "per_recording": per_recording,

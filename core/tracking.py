@@ -78,11 +78,16 @@ class TrackResult:
 
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                   seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
-                  more_cameras: tuple[Camera, ...] = (),
+                  more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
                   progress: Callable[[int, int], None] | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
-    ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s."""
+    ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
+    puts unrelated objects on the table (:meth:`DemoScene.add_clutter`); ``image_noise`` adds Gaussian
+    noise of that standard deviation (share of the full intensity) to every image, drawn from ``seed``."""
+    if not (np.isfinite(image_noise) and 0.0 <= image_noise <= 1.0):
+        raise InvalidInputError(f"image_noise must be a standard deviation in [0, 1] (share of full intensity); "
+                                f"got {image_noise!r}")
     if not demos.joint_names:
         raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
                                 "record it again with this version: hoap-actions record")
@@ -93,7 +98,10 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                                 f"{list(models.marker_names_)}")
     ep = demos[episode]
     scene = DemoScene()
+    noise = np.random.default_rng([seed, episode])
     try:
+        if clutter:
+            scene.add_clutter()
         body = BodyModel(models.marker_names_, torso_base=scene.torso_base())
         views = (camera, *more_cameras)
         tracker = ActionTracker(models, body, views, n_particles=particles, random_state=seed)
@@ -101,6 +109,9 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         for t in range(ep.T):
             scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
             images = [scene.render(view).rgb for view in views]
+            if image_noise > 0:
+                images = [np.clip(image + noise.normal(0.0, 255.0 * image_noise, image.shape), 0, 255).astype(np.uint8)
+                          for image in images]
             started = time.perf_counter()
             edges = [edge_image(image) for image in images]
             frames.append(tracker.step(edges))

@@ -30,6 +30,12 @@ HAND_LINKS = ("r_palm", "r_index", "r_thumb")  # the only links of the demonstra
 DEMONSTRATOR_CAMERA = Camera(eye=(0.75, -0.45, 0.55), target=(-0.30, 0.05, 0.10), fov_deg=55.0, width=320, height=240)
 """A monocular camera across the table from the demonstrator and to their right (the paper's Fig. 12
 view): the reaching arm is seen from the front-side, so the target's depth shows in the image."""
+CLUTTER = (  # (name, urdf, position m, scale, colour): what else lies on a real table
+    ("clutter_box", "demo_object.urdf", (0.25, -0.30, 0.05), 2.0, (0.2, 0.4, 0.9, 1.0)),
+    ("clutter_block", "demo_object.urdf", (-0.30, -0.35, 0.025), 1.0, (0.95, 0.85, 0.2, 1.0)),
+    ("clutter_peg", "peg.urdf", (0.22, 0.35, 0.04), 1.6, (0.1, 0.7, 0.3, 1.0)),
+    ("clutter_board", "hole_board.urdf", (0.30, 0.05, 0.0), 1.0, (0.55, 0.35, 0.2, 1.0)),
+)
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,13 @@ class DemoScene:
             raise InvalidInputError("joint angles and object pose must be finite")
         self.sim.reset_joints("human", [joints[name] for name in joint_names], q)
         self.sim.set_base_pose("object", object_pose[:3], Rotation.from_rotvec(object_pose[3:]).as_quat())
+
+    def add_clutter(self) -> None:
+        """Objects that have nothing to do with the task, for a camera to see: two blocks, a peg and a
+        board on the table outside the active region (fixed; for rendering, not for recording)."""
+        for name, urdf, position, scale, rgba in CLUTTER:
+            self.sim.load_urdf(name, urdf, position=position, fixed_base=True, scale=scale)
+            self.sim.set_color(name, rgba)
 
     def torso_base(self) -> np.ndarray:
         """The demonstrator's lumbar joint (m, scene frame): the fixed bottom of the trunk, which leans about it."""

@@ -44,6 +44,17 @@ def test_several_views_are_scored_together(small):
     assert summary["rms_m"]["shoulder"] < 0.05 and summary["frames"] == small[3].T
 
 
+def test_clutter_and_image_noise_are_part_of_the_seeded_episode(small):
+    models = load_default_models()
+    runs = [track_episode(models, small, 3, particles=50, seed=2, clutter=True, image_noise=0.03).summary()
+            for _ in range(2)]
+    assert runs[0]["rms_m_all"] == runs[1]["rms_m_all"] and runs[0]["recognized"] == runs[1]["recognized"]
+    clean = track_episode(models, small, 3, particles=50, seed=2).summary()
+    assert clean["rms_m_all"] != runs[0]["rms_m_all"]  # the noise and clutter reach the filter
+    with pytest.raises(InvalidInputError, match="image_noise must be"):
+        track_episode(models, small, 3, image_noise=-0.1)
+
+
 def test_refuses_what_it_cannot_track(small):
     models = load_default_models()
     bare = dataclasses.replace(small, joint_names=(), episodes=tuple(dataclasses.replace(e, Q=None) for e in small))
