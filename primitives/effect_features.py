@@ -14,21 +14,35 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["ThinPlateFeatures", "distinct_effects"]
+__all__ = ["ThinPlateFeatures", "effect_groups", "unit_range"]
 
 # Effects closer than this (in the unit box of the training range) are one location: repetitions of a
 # demonstration at the same target differ by sensor-level amounts, not by a new place to bend through.
 DISTINCT_TOLERANCE = 1e-3
 
 
-def distinct_effects(phi: np.ndarray, tolerance: float = DISTINCT_TOLERANCE) -> np.ndarray:
-    """The rows of ``phi`` (S, p) with near-duplicates (within ``tolerance``, in the same units) removed,
-    in order of first appearance."""
-    kept: list[np.ndarray] = []
-    for row in np.asarray(phi, dtype=float):
-        if not kept or np.min(np.linalg.norm(np.asarray(kept) - row, axis=1)) > tolerance:
-            kept.append(row)
-    return np.asarray(kept).reshape(-1, np.asarray(phi).shape[1])
+def unit_range(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``low`` and ``span`` (p,) of effects ``phi`` (S, p): ``(phi - low) / span`` fills the unit box
+    (a component that never varies keeps span 1)."""
+    low, high = phi.min(axis=0), phi.max(axis=0)
+    return low, np.where(high - low > 0, high - low, 1.0)
+
+
+def effect_groups(phi: np.ndarray, tolerance: float = DISTINCT_TOLERANCE) -> np.ndarray:
+    """A group id per row of ``phi`` (S, p), numbered in order of first appearance: a row within
+    ``tolerance`` (in the unit box of the rows' range) of a group's first row joins that group."""
+    phi = np.asarray(phi, dtype=float)
+    low, span = unit_range(phi)
+    unit = (phi - low) / span
+    groups, firsts = np.empty(len(unit), dtype=int), []
+    for i, row in enumerate(unit):
+        near = np.flatnonzero(np.linalg.norm(unit[firsts] - row, axis=1) <= tolerance) if firsts else []
+        if len(near):
+            groups[i] = near[0]
+        else:
+            groups[i] = len(firsts)
+            firsts.append(i)
+    return groups
 
 
 class ThinPlateFeatures:
@@ -56,9 +70,9 @@ class ThinPlateFeatures:
         that covers the range evenly (deterministic: no seed needed).
         """
         phi = np.asarray(phi, dtype=float)
-        low, high = phi.min(axis=0), phi.max(axis=0)
-        span = np.where(high - low > 0, high - low, 1.0)
-        unit = distinct_effects((phi - low) / span)
+        low, span = unit_range(phi)
+        _, firsts = np.unique(effect_groups(phi), return_index=True)
+        unit = (phi[firsts] - low) / span
         if unit.shape[0] > max_centres:
             chosen = [int(np.argmin(np.linalg.norm(unit - unit.mean(axis=0), axis=1)))]
             gap = np.linalg.norm(unit - unit[chosen[0]], axis=1)

@@ -68,7 +68,7 @@ from hoap_actions.errors import (
 )
 from hoap_actions.outputs import claimed_file
 from hoap_actions.primitives.base import Estimator, check_is_fitted
-from hoap_actions.primitives.effect_features import ThinPlateFeatures, distinct_effects
+from hoap_actions.primitives.effect_features import ThinPlateFeatures, effect_groups
 from hoap_actions.primitives.hmm_math import (
     forward_backward_padded,
     log_gaussian_density_padded,
@@ -320,8 +320,10 @@ class ParametricHMM(Estimator):
 
     def _means_at(self, phi: np.ndarray, offset: np.ndarray) -> np.ndarray:
         """State means for each effect: ``(S, K, D)`` from ``phi`` of shape ``(S, p)``, minus ``offset``."""
-        bend = np.einsum("kdm,sm->skd", self.V_, self.effect_features_.transform(phi))
-        return (self.mean_bar_ - offset)[None] + np.einsum("kdp,sp->skd", self.W_, phi) + bend
+        means = (self.mean_bar_ - offset)[None] + np.einsum("kdp,sp->skd", self.W_, phi)
+        if self.V_.shape[2]:  # the E-step's hot path: a linear model adds nothing
+            means = means + np.einsum("kdm,sm->skd", self.V_, self.effect_features_.transform(phi))
+        return means
 
     def _e_step(self, batch: _Batch) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-sequence log-likelihoods, padded posteriors (S, T, K) and expected transition counts (K, K)."""
@@ -449,7 +451,7 @@ class ParametricHMM(Estimator):
         if self.mean_model == "linear" or p == 0:
             return ThinPlateFeatures.none(p)
         features = ThinPlateFeatures.from_effects(phi, int(self.max_centres))
-        n_distinct = distinct_effects((phi - features.low) / features.span).shape[0]
+        n_distinct = int(effect_groups(phi).max()) + 1
         if self.smoothing == 0 and n_distinct < p + 1 + features.n_features:
             raise IdentifiabilityError(
                 f"mean_model='tps' with smoothing=0 has {p + 1 + features.n_features} coefficients per state (1 + p = "
@@ -595,14 +597,16 @@ class ParametricHMM(Estimator):
         occ = gamma.sum(axis=1)                                                # (S, K)
         white_x = np.einsum("kij,skj->ski", prec, np.matmul(gamma.transpose(0, 2, 1), batch.X))  # P_j sum_t g x_t
 
-        def expected(phi: np.ndarray) -> np.ndarray:
-            white_mu = np.einsum("kij,skj->ski", prec, self._means_at(phi, batch.offset))
+        def white_means(phi: np.ndarray) -> np.ndarray:
+            return np.einsum("kij,skj->ski", prec, self._means_at(phi, batch.offset))
+
+        def expected(white_mu: np.ndarray) -> np.ndarray:
             return np.einsum("skd,skd->s", white_mu, white_x - 0.5 * occ[:, :, None] * white_mu)
 
         phi = batch.phi
         jac = self.W_[None] + np.einsum("kdm,smp->skdp", self.V_, self.effect_features_.jacobian(phi))
         white_jac = np.einsum("kij,skjp->skip", prec, jac)                     # (S, K, D, p)
-        white_mu = np.einsum("kij,skj->ski", prec, self._means_at(phi, batch.offset))
+        white_mu = white_means(phi)
         lhs = np.einsum("sk,skdp,skdq->spq", occ, white_jac, white_jac)
         rhs = np.einsum("skdp,skd->sp", white_jac, white_x - occ[:, :, None] * white_mu)
         try:
@@ -610,14 +614,14 @@ class ParametricHMM(Estimator):
         except np.linalg.LinAlgError as exc:
             raise IdentifiabilityError("phi is not identifiable from this sequence under this model (the "
                                        "Gauss-Newton matrix sum_j J_j^T S_j^-1 J_j is singular)") from exc
-        before, share = expected(phi), np.ones(phi.shape[0])
+        before, share = expected(white_mu), np.ones(phi.shape[0])
         for _ in range(_MAX_STEP_HALVINGS):
-            worse = expected(phi + share[:, None] * step) < before
+            worse = expected(white_means(phi + share[:, None] * step)) < before
             if not worse.any():
                 break
             share = np.where(worse, 0.5 * share, share)
         else:
-            share = np.where(expected(phi + share[:, None] * step) < before, 0.0, share)
+            share = np.where(expected(white_means(phi + share[:, None] * step)) < before, 0.0, share)
         return phi + share[:, None] * step
 
     # ----------------------------------------------------------------------------- synthesis

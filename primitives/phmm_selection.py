@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.effect_features import DISTINCT_TOLERANCE
+from hoap_actions.primitives.effect_features import effect_groups
 from hoap_actions.primitives.hmm_math import validate_sequences
 from hoap_actions.primitives.parametric_hmm import ParametricHMM, check_train_phi
 from hoap_actions.primitives.trajectory_metrics import warped_rms_error
@@ -89,23 +89,6 @@ def select_n_states(X, lengths, phi, candidates: Sequence[int], n_folds: int = 3
         raise InvalidInputError("no candidate n_states could be cross-validated (sequences too short or "
                                 "too few effects per fold)")
     return NStatesSelection(n_states=best, scores=scores)
-
-
-def effect_groups(phi: np.ndarray) -> np.ndarray:
-    """A group id per sequence: sequences whose effects coincide (repetitions at one location, within
-    :data:`~hoap_actions.primitives.effect_features.DISTINCT_TOLERANCE` of the effects' range) share one."""
-    low, span = phi.min(axis=0), np.ptp(phi, axis=0)
-    unit = (phi - low) / np.where(span > 0, span, 1.0)
-    groups = np.full(len(phi), -1)
-    representatives: list[np.ndarray] = []
-    for i, row in enumerate(unit):
-        near = [g for g, r in enumerate(representatives) if np.linalg.norm(r - row) <= DISTINCT_TOLERANCE]
-        if near:
-            groups[i] = near[0]
-        else:
-            groups[i] = len(representatives)
-            representatives.append(row)
-    return groups
 
 
 def select_mean_model(X, lengths, phi, candidates: Sequence[Mapping], n_folds: int = 5,
