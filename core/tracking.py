@@ -22,7 +22,7 @@ from hoap_actions.primitives.datasets import Demonstrations
 from hoap_actions.primitives.discovery import UNKNOWN
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.tracking.action_tracker import ActionTracker, TrackedFrame
-from hoap_actions.primitives.tracking.body_model import BodyModel, project
+from hoap_actions.primitives.tracking.body_model import BodyModel
 from hoap_actions.primitives.tracking.edges import edge_image
 
 __all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
@@ -53,13 +53,13 @@ class TrackResult:
         distance = np.linalg.norm(estimate - self.truth_markers, axis=2)  # (T, M)
         recognized = np.array([max(f.class_probabilities, key=f.class_probabilities.get) for f in self.frames])
         known = self.truth_classes != UNKNOWN
-        errors, converge = [], []
+        errors, found = [], []
         for start, end, target in self.approach_ends:
-            gap = np.array([np.linalg.norm(f.end_mean - target) for f in self.frames[start:end]])
+            gap = np.linalg.norm(np.array([f.end_mean for f in self.frames[start:end]]) - target, axis=1)
             errors.append(float(gap[-1]))
-            outside = np.flatnonzero(gap >= CONVERGED_M)
-            converge.append(0 if not outside.size else int(outside[-1]) + 1 if outside[-1] + 1 < gap.size else None)
-        found = [c for c in converge if c is not None]
+            if gap[-1] < CONVERGED_M:  # found: the frames until it stays within CONVERGED_M to the end
+                outside = np.flatnonzero(gap >= CONVERGED_M)
+                found.append(int(outside[-1]) + 1 if outside.size else 0)
         return {
             "rms_m": {name: float(np.sqrt(np.mean(distance[:, self.marker_names.index(name)] ** 2)))
                       for name in SCORED_MARKERS},
@@ -69,7 +69,8 @@ class TrackResult:
             "frames": len(self.frames),
             "phi_error_m": float(np.median(errors)) if errors else None,
             "frames_to_converge": float(np.median(found)) if found else None,
-            "approaches_converged": f"{len(found)}/{len(converge)}",
+            "approaches_converged": len(found),
+            "approaches": len(self.approach_ends),
             "frame_accuracy": float(np.mean(recognized[known] == self.truth_classes[known])) if known.any() else None,
             "recognized": recognized.tolist(),
             "truth": self.truth_classes.tolist(),
@@ -144,7 +145,7 @@ def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) 
         frame = result.frames[t]
         picture = body.draw(result.images[t], result.truth_markers[t], DEMONSTRATOR_CAMERA, (0, 160, 0))
         picture = body.draw(picture, frame.markers, DEMONSTRATOR_CAMERA, (230, 0, 0), thickness=2)
-        u, v = project(frame.end_mean, DEMONSTRATOR_CAMERA)
+        u, v = DEMONSTRATOR_CAMERA.project(frame.end_mean)[0]
         if np.isfinite(u) and np.isfinite(v):
             cv2.circle(picture, (int(round(u)), int(round(v))), 4, (230, 0, 0), -1, lineType=cv2.LINE_AA)
         cv2.putText(picture, f"class {frame.class_id}  s {frame.state}  H {frame.entropy:.2f}", (6, 16),

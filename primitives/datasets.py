@@ -75,6 +75,9 @@ _ARRAY_OPTIONS = {"compression": "gzip", "compression_opts": 4, "shuffle": True,
 # scene frame) is far outside any table-top scene, so the file is corrupt or mis-scaled.
 MAX_COORDINATE_M = 100.0
 ROTATION_SLACK_RAD = 1e-6  # float round-off allowed on the convention's |angle| <= pi
+# A recorded joint angle beyond this (rad) is no human joint's: the file is corrupt, and the value would
+# go to PyBullet when the frame is rendered again.
+MAX_JOINT_ANGLE_RAD = 2.0 * np.pi
 _TRUTH_SHAPES = {"object_start": (6,), "object_end": (6,), "object_target": (6,), "hand_rest": (3,), "grid_index": (2,)}
 _TRUTH_ATTRIBUTES = ("action", "direction", "distance", "angle", "repetition", "grid")
 _EPISODE_ARRAYS = ("H", "O", "ground_truth/labels", *(f"ground_truth/{name}" for name in _TRUTH_SHAPES))
@@ -377,6 +380,8 @@ def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...], n
         if Q.shape != (len(H), n_joints) or Q.dtype.kind != "f" or not np.all(np.isfinite(Q)):
             raise DataFileError(f"{where}: entry Q has shape {Q.shape} and dtype {Q.dtype}; accepted: ({len(H)}, "
                                 f"{n_joints}) finite joint angles, one column per root attribute joint_names")
+        _raise_beyond(where, "Q", np.abs(Q).max(axis=1), MAX_JOINT_ANGLE_RAD, "a joint angle of", "rad",
+                      f"joint angles within +-{MAX_JOINT_ANGLE_RAD:.3g} rad")
     return Episode(H=H, O=O, ground_truth=truth, seed=seed, Q=Q)
 
 

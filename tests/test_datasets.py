@@ -104,6 +104,11 @@ def test_joint_angles_must_match_their_names(tmp_path, demos):
         f["episode_00001/Q"] = np.zeros((45, 2))
     with pytest.raises(DataFileError, match="episode_00001: entry Q has shape"):
         load_demonstrations(path)
+    with h5py.File(path, "r+") as f:
+        del f["episode_00001/Q"]
+        f["episode_00001/Q"] = np.full((45, len(JOINTS)), 1e300)
+    with pytest.raises(DataFileError, match="episode_00001: Q frame 0 has a joint angle of 1e"):
+        load_demonstrations(path)
 
 
 def test_hmmlearn_views(written):

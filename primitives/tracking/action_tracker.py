@@ -88,14 +88,12 @@ class ActionTracker:
         cameras: one or more :class:`~hoap_actions.primitives.tracking.body_model.Projector` cameras, one
             edge image each.
         n_particles: particles (the paper used 400).
-        hand_start: (3,) m, where the hand rests before the first approach (the first class's start).
         observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
         random_state: seed of the filter's draws.
     """
 
     def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
-                 n_particles: int = 400, hand_start: np.ndarray | None = None,
-                 observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
+                 n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
                  random_state: int | np.random.Generator | None = None) -> None:
         check_is_fitted(models)
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
@@ -120,9 +118,8 @@ class ActionTracker:
                              for cid, model in models.classes_.items()}
         self._end_box = {}
         for cid, model in models.classes_.items():
-            ends = (model.centre + model.phmm.train_phi_ @ model.basis.T)[:, 3:]
+            ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
             self._end_box[cid] = (ends.min(axis=0) - END_MARGIN_M, ends.max(axis=0) + END_MARGIN_M)
-        self._hand_start = None if hand_start is None else np.asarray(hand_start, dtype=float)
         self.reset()
 
     # ----------------------------------------------------------------------------- set-up
@@ -150,7 +147,7 @@ class ActionTracker:
         for cid in np.unique(self.class_id):
             chosen = np.flatnonzero(self.class_id == cid)
             effects = self._training_effects(cid, chosen.size)
-            self.start[chosen] = effects[:, :3] if self._hand_start is None else self._hand_start
+            self.start[chosen] = effects[:, :3]
             self.end[chosen] = effects[:, 3:] + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
 
     def _training_effects(self, class_id: int, n: int) -> np.ndarray:
@@ -171,16 +168,16 @@ class ActionTracker:
                                         f"got {np.shape(image)}")
         self._propagate()
         markers = self.markers()
-        log_weights = self._log_likelihood(markers, images)
-        reinitialised = not np.any(np.isfinite(log_weights))
+        likelihood = self._log_likelihood(markers, images)
+        reinitialised = not np.any(np.isfinite(likelihood))
         if reinitialised:  # nothing explains the image: start again from the prior, never NaN
             self.reset()
             markers = self.markers()
-            log_weights = np.zeros(self.n_particles)
-        log_weights = log_weights + np.log(self.weights)
+            likelihood = np.zeros(self.n_particles)
+        log_weights = likelihood + np.log(self.weights)
         weights = np.exp(log_weights - log_weights.max())
         weights /= weights.sum()
-        frame = self._summary(weights, markers, float(log_weights.max()), reinitialised)
+        frame = self._summary(weights, markers, float(likelihood.max()), reinitialised)
         self.weights = weights
         if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
             self._resample(weights)
@@ -189,6 +186,7 @@ class ActionTracker:
     def _propagate(self) -> None:
         targets, _, table = self._grammar_rows
         u = self._rng.random(self.n_particles)
+        leaving, successors = [], []
         for cid in np.unique(self.class_id):
             chosen = np.flatnonzero((self.class_id == cid) & ~self.resting)
             if not chosen.size:
@@ -208,13 +206,15 @@ class ActionTracker:
             self.end[chosen] = np.clip(self.end[chosen] + step, *self._end_box[cid])
             redraw = chosen[self._rng.random(chosen.size) < REDRAW_SHARE]
             if redraw.size:
-                fresh = self._training_effects(cid, redraw.size)[:, 3:]
-                if model.kind == MANIPULATION:
-                    fresh = fresh - self._training_effects(cid, redraw.size)[:, :3] + self.start[redraw]
+                effects = self._training_effects(cid, redraw.size)
+                fresh = effects[:, 3:] - effects[:, :3] + self.start[redraw] if model.kind == MANIPULATION \
+                    else effects[:, 3:]  # a manipulation's end: a learned displacement from its own start
                 self.end[redraw] = fresh + self._rng.normal(0.0, NEW_END_SPREAD_M, (redraw.size, 3))
-            leaving = chosen[last & (u[chosen] < model.exit_probability)]
-            if leaving.size:
-                self._switch(leaving, self._rng.choice(targets, size=leaving.size, p=table[cid] / table[cid].sum()))
+            ending = chosen[last & (u[chosen] < model.exit_probability)]
+            leaving.append(ending)
+            successors.append(self._rng.choice(targets, size=ending.size, p=table[cid] / table[cid].sum()))
+        if leaving:  # after every class has moved: a particle that changes class moves once per frame
+            self._switch(np.concatenate(leaving), np.concatenate(successors))
 
     def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
         """Particles that finished their class start the next one where the last ended (EXIT: rest there).
@@ -223,6 +223,8 @@ class ActionTracker:
         approach, moved to the object's height); approach and remove start at the particle's own hand.
         """
         self.resting[particles[successors == EXIT]] = True
+        if not particles.size:
+            return
         hands = self.markers(particles)[:, self.models.discovery_.hand_marker]
         for cid in np.unique(successors[successors != EXIT]):
             rows = np.flatnonzero(successors == cid)
@@ -282,13 +284,11 @@ class ActionTracker:
 
     def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool) -> TrackedFrame:
         best = int(np.argmax(weights))
-        probabilities = {int(c): float(weights[self.class_id == c].sum()) for c in np.unique(self.class_id)}
-        joint: dict[tuple[int, int], float] = {}
-        for c, s, w in zip(self.class_id, self.state.astype(int), weights):
-            joint[(c, s)] = joint.get((c, s), 0.0) + w
-        p = np.array([w for w in joint.values() if w > 0])
-        # weighted sums by numpy's own reduction, not BLAS: BLAS's first call in a process can round
-        # differently from later ones, and the same seed must give the same estimates bit for bit
+        classes, of_class = np.unique(self.class_id, return_inverse=True)
+        probabilities = dict(zip(classes.tolist(), np.bincount(of_class, weights).tolist()))
+        _, of_pair = np.unique(np.stack([self.class_id, self.state.astype(int)]), axis=1, return_inverse=True)
+        p = np.bincount(of_pair.ravel(), weights)
+        p = p[p > 0]
         mean = np.sum(weights[:, None] * self.end, axis=0)
         std = np.sqrt(np.maximum(np.sum(weights[:, None] * (self.end - mean) ** 2, axis=0), 0.0))
         return TrackedFrame(

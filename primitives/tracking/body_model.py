@@ -16,31 +16,19 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "Projector", "project"]
+__all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "Projector"]
 
 
 class Projector(Protocol):
-    """A pinhole camera: image size, and OpenGL-style 4x4 view and projection matrices
-    (:class:`hoap_actions.envs.sim.Camera` is one)."""
+    """A pinhole camera (:class:`hoap_actions.envs.sim.Camera` is one): its image size, world points
+    (N, 3) to pixels (N, 2) (u right, v down), and its 4x4 world-to-camera matrix."""
 
     width: int
     height: int
 
+    def project(self, points: np.ndarray) -> np.ndarray: ...
+
     def view_matrix(self) -> np.ndarray: ...
-
-    def projection_matrix(self) -> np.ndarray: ...
-
-
-def project(points: np.ndarray, camera: Projector) -> np.ndarray:
-    """Pixels ``(..., 2)`` (u right, v down) of world points ``(..., 3)``.
-
-    Products by ``einsum`` rather than BLAS: BLAS may round its first call in a process differently,
-    and a tracker must give the same answer for the same seed bit for bit.
-    """
-    matrix = np.einsum("ij,jk->ik", camera.projection_matrix(), camera.view_matrix())
-    clip = np.einsum("ij,...j->...i", matrix[:, :3], points) + matrix[:, 3]
-    ndc = clip[..., :2] / clip[..., 3:4]
-    return np.stack([(ndc[..., 0] + 1.0) * 0.5 * camera.width, (1.0 - ndc[..., 1]) * 0.5 * camera.height], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -118,7 +106,7 @@ class BodyModel:
         side = camera.view_matrix()[0, :3]  # the camera's right axis in the world: a radius across the view
         radius = self._radius[None, :, None]
         points = np.concatenate([starts, ends, starts + radius * side, ends + radius * side], axis=1)
-        pixels = project(points, camera).reshape(n, 4, len(self.capsules), 2)
+        pixels = camera.project(points.reshape(-1, 3)).reshape(n, 4, len(self.capsules), 2)
         a, b = pixels[:, 0], pixels[:, 1]                                     # (N, C, 2)
         rho_a = np.linalg.norm(pixels[:, 2] - a, axis=2)                      # projected radii (px)
         rho_b = np.linalg.norm(pixels[:, 3] - b, axis=2)
