@@ -132,8 +132,7 @@ def interpolation_limit(data) -> dict:
     means = {k: model._means_at(data.location(k)[None], np.zeros(model.n_features_in_))[0] for k in keys}
     out = {}
     for grid in TRAIN_GRIDS:
-        nodes = [k for k in keys if min(np.linalg.norm(data.location(k) - data.location(t, grid))
-                                        for t in data.cells[grid]) < 1e-3]
+        nodes = sorted(train_locations(data, grid))
         phi = np.array([data.location(k) for k in nodes])
         values = np.array([means[k].ravel() for k in nodes])
         basis = ThinPlateFeatures.from_effects(phi, len(nodes))

@@ -65,9 +65,8 @@ def main(argv: list[str] | None = None) -> dict:
             "frames": frames,
             "file_bytes": statistics.median(r[3] for r in timed),
             "wall_s_per_run": walls,
-            "speedup_over_first": None,
+            "speedup_over_first": (rows[0]["median_wall_s"] if rows else median) / median,
         })
-        rows[-1]["speedup_over_first"] = rows[0]["median_wall_s"] / median
         print(
             f"preset {args.preset}, {workers} worker(s): {rows[-1]['median_recordings_per_s']:.2f} recordings/s, "
             f"{rows[-1]['median_sim_s_per_wall_s']:.1f} simulated s per wall s (median of {args.runs} runs: "
