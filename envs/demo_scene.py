@@ -76,6 +76,7 @@ class DemoScene:
                 f"object_size={self.config.object_size} m does not match demo_object.urdf ({(hi - lo).round(4)} m)"
             )
         self._initial_state = sim.save_state()
+        self._human_joints = {j.name: j.index for j in sim.joints("human")}
 
     def reset(self, object_xy: np.ndarray, object_yaw: float = 0.0) -> None:
         """Restore the initial world and put the block, resting, at ``object_xy`` (m) turned by ``object_yaw`` (rad)."""
@@ -91,7 +92,7 @@ class DemoScene:
     def pose(self, joint_names: tuple[str, ...], q: np.ndarray, object_pose: np.ndarray) -> None:
         """Put the demonstrator at joint angles ``q`` (rad, by ``joint_names``) and the block at
         ``object_pose`` (6,): one recorded frame (``Episode.Q``, ``Episode.O``), for a camera."""
-        joints = {j.name: j.index for j in self.sim.joints("human")}
+        joints = self._human_joints
         unknown = [name for name in joint_names if name not in joints]
         q, object_pose = np.asarray(q, float), np.asarray(object_pose, float)
         if unknown or q.shape != (len(joint_names),) or object_pose.shape != (6,):

@@ -183,17 +183,13 @@ def _perform(job: tuple[DemoTask, int, int]) -> DemoRecording:
     return _WORKER["demonstrator"].perform(task, np.random.default_rng([seed, index + 1]))
 
 
-def _recordings(tasks: list[DemoTask], seed: int, workers: int) -> Iterator[DemoRecording]:
-    """Each task performed, in order: here, or spread over ``workers`` spawned processes."""
+def _recordings(tasks: list[DemoTask], seed: int, workers: int, scene: DemoScene) -> Iterator[DemoRecording]:
+    """Each task performed, in order: in ``scene``, or spread over ``workers`` spawned processes."""
     jobs = [(task, seed, index) for index, task in enumerate(tasks)]
     if workers == 1:
-        scene = DemoScene()
-        try:
-            demonstrator = Demonstrator(scene)
-            for task, _, index in jobs:
-                yield demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
-        finally:
-            scene.close()
+        demonstrator = Demonstrator(scene)
+        for task, _, index in jobs:
+            yield demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
         return
     context = multiprocessing.get_context("spawn")  # PyBullet and placo do not survive a fork
     with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_worker) as pool:
@@ -202,18 +198,17 @@ def _recordings(tasks: list[DemoTask], seed: int, workers: int) -> Iterator[Demo
 
 def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1) -> Demonstrations:
     episodes, table_contacts, missed_grasps = [], [], []
-    performed = _recordings(tasks, seed, workers)
-    bar = tqdm(performed, total=len(tasks), desc=f"recording {preset}", unit="episode",
-               disable=not (progress and sys.stderr.isatty()))
-    for index, (task, recording) in enumerate(zip(tasks, bar)):
-        episodes.append(_episode(task, recording, seed, index))
-        if recording.table_contact_frames:
-            table_contacts.append(index)
-        if task.action in ("move", "rotate") and not recording.grasped:
-            missed_grasps.append(index)
-    scene = DemoScene()
+    scene = DemoScene()  # the recorded scene's numbers, and the scene itself for a single worker
     try:
         scene_parameters = scene.parameters()
+        bar = tqdm(_recordings(tasks, seed, workers, scene), total=len(tasks), desc=f"recording {preset}",
+                   unit="episode", disable=not (progress and sys.stderr.isatty()))
+        for index, (task, recording) in enumerate(zip(tasks, bar)):
+            episodes.append(_episode(task, recording, seed, index))
+            if recording.table_contact_frames:
+                table_contacts.append(index)
+            if task.action in ("move", "rotate") and not recording.grasped:
+                missed_grasps.append(index)
     finally:
         scene.close()
     return Demonstrations(
