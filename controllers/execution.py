@@ -134,7 +134,7 @@ class GraspAndInsert(ABC):
         self._parse = env.get_wrapper_attr("parse_observation")
         self._fps = float(env.metadata["render_fps"])
         robot = env.get_wrapper_attr("robot_description")
-        self.ik = WholeBodyIK(robot.joint_names, rest_posture(robot))
+        self.ik = WholeBodyIK(robot.joint_names, rest_posture(robot), fixed_legs=robot.fixed_legs)
         self.failure = None
         self.world: WorldEstimate | None = None
         self.phase = Phase.DONE

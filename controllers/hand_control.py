@@ -52,6 +52,7 @@ class StandingRobot(Protocol):
 
     joint_names: Sequence[str]
     home_posture: Sequence[float]
+    fixed_legs: bool
     targets: np.ndarray
 
     def joint_index(self, name: str) -> int: ...
@@ -119,11 +120,12 @@ def rest_posture(robot: StandingRobot | RobotDescription) -> np.ndarray:
 
 @dataclass(frozen=True)
 class RobotDescription:
-    """A robot's joints (names, in the order of its joint vectors) and home posture (rad): what a
-    policy needs to build its own kinematic model of it."""
+    """A robot's joints (names, in the order of its joint vectors), home posture (rad) and whether its
+    legs are welded to a fixed pelvis: what a policy needs to build its own kinematic model of it."""
 
     joint_names: tuple[str, ...]
     home_posture: tuple[float, ...]
+    fixed_legs: bool = False
 
 
 class HandController:
@@ -146,7 +148,7 @@ class HandController:
         integral_gain: float = INTEGRAL_GAIN,
     ) -> None:
         self.robot = robot
-        self.ik = ik or WholeBodyIK(robot.joint_names, rest_posture(robot), dt=dt)
+        self.ik = ik or WholeBodyIK(robot.joint_names, rest_posture(robot), dt=dt, fixed_legs=robot.fixed_legs)
         self.dt = float(dt)
         self.integral_gain = float(integral_gain)
         self.retimer = StreamingRetimer(3, self.dt, limits.velocity, limits.acceleration, limits.jerk)

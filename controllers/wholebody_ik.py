@@ -21,6 +21,11 @@ on a target that moves under a millimetre per tick (see ``hand_control.py``). Ta
   :data:`IK_JOINT_LIMITS`) and velocity limits: 5 rad/s for the arms (the URDF's), but
   :data:`BODY_SPEED` for the legs and the waist (see there; :meth:`WholeBodyIK.set_body_speed`).
 
+A robot with welded legs and a fixed pelvis (``fixed_legs=True``, the env's ``robot="fixed_legs"``)
+keeps only the hand, tilt, posture and held-arm tasks and the limits: the legs and the floating base
+are masked out of the QP, and the feet, centre-of-mass and pelvis tasks, which exist to keep a
+standing robot on its feet, are not in the problem.
+
 At reset the posture, CoM and tilt targets start at the measured state and move to their goals at
 bounded rates, so a reset never swings the body at full joint speed.
 
@@ -49,7 +54,7 @@ from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.urdf import urdf_path
+from hoap_actions.urdf import LEG_JOINTS, urdf_path
 
 logger = logging.getLogger(__name__)
 
@@ -73,8 +78,7 @@ HELD = ("l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow", "l_w
 POSTURE_RATE = 0.5  # rad/s at which the posture target moves from the reset posture to the rest posture
 COM_RATE = 0.02  # m/s at which the CoM target moves to the polygon's centre and the margin grows
 TILT_RATE = 0.5  # rad/s at which the hand's tilt target goes from its reset tilt to level
-LEG_JOINTS = ("hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
-LEGS = tuple(f"{side}_{joint}" for side in "rl" for joint in LEG_JOINTS)
+LEGS = LEG_JOINTS
 BODY = (*LEGS, "waist_pitch")
 """The joints that move the trunk: the legs and the waist."""
 LEG_DAMPING = 1.0  # per rad^2 of a leg joint's step: damps the QP's knee cycle (a hand error costs 1e4 per m^2)
@@ -136,6 +140,8 @@ class WholeBodyIK:
         leg_damping: soft weight on each leg joint's step (per rad^2), against the QP's knee cycle.
         body_speed: velocity limit (rad/s) of the legs and the waist in the IK (:attr:`body_speed`;
             :meth:`set_body_speed` changes it for a while).
+        fixed_legs: the robot's pelvis is fixed and its legs welded (they keep the angles given at
+            :meth:`reset`); no balance tasks.
     """
 
     def __init__(
@@ -158,8 +164,10 @@ class WholeBodyIK:
         joint_limits: Mapping[str, tuple[float, float]] = IK_JOINT_LIMITS,
         leg_damping: float = LEG_DAMPING,
         body_speed: float = BODY_SPEED,
+        fixed_legs: bool = False,
     ) -> None:
         self.joint_names = tuple(joint_names)
+        self.fixed_legs = bool(fixed_legs)
         home = np.asarray(home_posture, dtype=float)
         if home.shape != (len(self.joint_names),) or not np.all(np.isfinite(home)):
             raise InvalidInputError(
@@ -181,28 +189,34 @@ class WholeBodyIK:
 
         solver = self.solver = placo.KinematicsSolver(self.robot)
         solver.dt = self.dt
-        self.set_body_speed(body_speed)
+        if not self.fixed_legs:  # a bolted trunk cannot rock the feet: the waist keeps the URDF's speed
+            self.set_body_speed(body_speed)
         solver.enable_joint_limits(True)
         solver.enable_velocity_limits(True)
         for name in frozen:
             solver.mask_dof(name)
-        leg_damping_task = solver.add_regularization_task(0.0)  # per-joint weights replace the 0 default
-        for name in LEGS:
-            leg_damping_task.set_joint_weight(name, float(leg_damping))
-        self._feet = []
-        for frame in FEET:
-            task = solver.add_frame_task(frame, np.eye(4))
-            task.configure(frame, "hard", 1.0, 1.0)
-            self._feet.append(task)
-        self._polygon = solver.add_com_polygon_constraint([np.zeros(2)] * 3, self.com_margin)
-        self._polygon.configure("support_polygon", "hard", 1.0)
-        # The divergent component of motion (CoM + CoM velocity / omega), not just the CoM, must stay
-        # inside: this also bounds how fast the commanded CoM may head for the polygon's edge.
-        self._polygon.dcm = True
-        self._polygon.omega = float(np.sqrt(9.81 / COM_HEIGHT))
-        self._com = solver.add_com_task(np.zeros(3))
-        self._com.mask.set_axises("xy")
-        self._com.configure("com_xy", "soft", float(com_weight))
+        if self.fixed_legs:  # nothing to balance: the legs and the pelvis leave the problem
+            solver.mask_fbase(True)
+            for name in LEGS:
+                solver.mask_dof(name)
+        else:
+            leg_damping_task = solver.add_regularization_task(0.0)  # per-joint weights replace the 0 default
+            for name in LEGS:
+                leg_damping_task.set_joint_weight(name, float(leg_damping))
+            self._feet = []
+            for frame in FEET:
+                task = solver.add_frame_task(frame, np.eye(4))
+                task.configure(frame, "hard", 1.0, 1.0)
+                self._feet.append(task)
+            self._polygon = solver.add_com_polygon_constraint([np.zeros(2)] * 3, self.com_margin)
+            self._polygon.configure("support_polygon", "hard", 1.0)
+            # The divergent component of motion (CoM + CoM velocity / omega), not just the CoM, must stay
+            # inside: this also bounds how fast the commanded CoM may head for the polygon's edge.
+            self._polygon.dcm = True
+            self._polygon.omega = float(np.sqrt(9.81 / COM_HEIGHT))
+            self._com = solver.add_com_task(np.zeros(3))
+            self._com.mask.set_axises("xy")
+            self._com.configure("com_xy", "soft", float(com_weight))
         self._hand = solver.add_position_task(HAND, np.zeros(3))
         self._hand.configure("hand", "soft", float(hand_weight))
         # Tilt only: the orientation target is re-levelled at the hand's current heading each solve
@@ -211,14 +225,15 @@ class WholeBodyIK:
         self._tilt = solver.add_orientation_task(HAND, np.eye(3))
         self._tilt.mask.set_axises("xy", "task")
         self._tilt.configure("hand_tilt", "soft", float(axis_weight))
-        self._pelvis = solver.add_orientation_task(PELVIS, np.eye(3))
-        self._pelvis.configure("pelvis_level", "soft", float(pelvis_weight))
-        # The pelvis stays over its reset position: 2 cm behind the table edge, and moving it far to
-        # reach (back, or sideways) swings the trunk enough to topple the robot (measured). It may
-        # rise and sink: the legs lower and raise the shoulders.
-        self._pelvis_xy = solver.add_position_task(PELVIS, np.zeros(3))
-        self._pelvis_xy.mask.set_axises("xy")
-        self._pelvis_xy.configure("pelvis_xy", "soft", float(pelvis_xy_weight))
+        if not self.fixed_legs:
+            self._pelvis = solver.add_orientation_task(PELVIS, np.eye(3))
+            self._pelvis.configure("pelvis_level", "soft", float(pelvis_weight))
+            # The pelvis stays over its reset position: 2 cm behind the table edge, and moving it far to
+            # reach (back, or sideways) swings the trunk enough to topple the robot (measured). It may
+            # rise and sink: the legs lower and raise the shoulders.
+            self._pelvis_xy = solver.add_position_task(PELVIS, np.zeros(3))
+            self._pelvis_xy.mask.set_axises("xy")
+            self._pelvis_xy.configure("pelvis_xy", "soft", float(pelvis_xy_weight))
         self._posture = solver.add_joints_task()
         self._posture.configure("posture", "soft", float(posture_weight))
         # Joints held firmly at their posture (the idle arm): left free, the IK swings them as
@@ -251,6 +266,25 @@ class WholeBodyIK:
         T[:3, 3] = np.asarray(base_position, dtype=float)
         robot.set_T_world_fbase(T)
         robot.update_kinematics()
+        # Posture, CoM and margin start where the robot is and move to their goals at bounded rates
+        # (see _settle): jumping to them at once would swing the body at full joint speed.
+        self._posture_target = q.copy()
+        self._hand.target_world = robot.get_T_world_frame(HAND)[:3, 3]
+        if self.fixed_legs:
+            self._com_target, self._com_goal, self._margin = np.zeros(2), np.zeros(2), self.com_margin
+        else:
+            self._reset_balance()
+        T_hand = robot.get_T_world_frame(HAND)
+        self._tilt_rotvec = Rotation.from_matrix(_heading(T_hand).T @ T_hand[:3, :3]).as_rotvec()
+        self._tilt_rotation = _rodrigues(self._tilt_rotvec)
+        self._settled = False
+        self._settle()
+        self._good_q = robot.state.q.copy()
+
+    def _reset_balance(self) -> None:
+        """Feet tasks on the soles where they stand, their support polygon, the pelvis held as it is,
+        and the CoM target and margin starting from the measured CoM."""
+        robot = self.robot
         corners = []
         for frame, task in zip(FEET, self._feet):
             T_sole = robot.get_T_world_frame(frame)
@@ -261,22 +295,17 @@ class WholeBodyIK:
         corners = np.array(corners)
         self.polygon = corners[ConvexHull(corners).vertices[::-1]]  # scipy gives counter-clockwise
         self._polygon.polygon = [p for p in self.polygon]
-        self._hand.target_world = robot.get_T_world_frame(HAND)[:3, 3]
         T_pelvis = robot.get_T_world_frame(PELVIS)
         self._pelvis.R_world_frame = T_pelvis[:3, :3]
         self._pelvis_xy.target_world = T_pelvis[:3, 3]
-        # Posture, CoM and margin start where the robot is and move to their goals at bounded rates
-        # (see _settle): jumping to them at once would swing the body at full joint speed.
-        self._posture_target = q.copy()
         com = robot.com_world()[:2]
         self._com_target, self._com_goal = com.copy(), self.polygon.mean(axis=0)
         self._margin = float(np.clip(polygon_distance(com, self.polygon) - 0.002, 0.0, self.com_margin))
-        T_hand = robot.get_T_world_frame(HAND)
-        self._tilt_rotvec = Rotation.from_matrix(_heading(T_hand).T @ T_hand[:3, :3]).as_rotvec()
-        self._tilt_rotation = _rodrigues(self._tilt_rotvec)
-        self._settled = False
-        self._settle()
-        self._good_q = robot.state.q.copy()
+
+    def _send_balance_targets(self) -> None:
+        if not self.fixed_legs:
+            self._com.target_world = np.r_[self._com_target, 0.0]
+            self._polygon.margin = self._margin
 
     def _settle(self) -> None:
         """Move the posture, CoM-target and margin one tick towards their goals (no-op once there)."""
@@ -291,8 +320,7 @@ class WholeBodyIK:
             self._tilt_rotvec *= max(0.0, angle - TILT_RATE * dt) / angle
             self._tilt_rotation = _rodrigues(self._tilt_rotvec)
         self._set_posture_targets()
-        self._com.target_world = np.r_[self._com_target, 0.0]
-        self._polygon.margin = self._margin
+        self._send_balance_targets()
         self._settled = bool(
             np.array_equal(self._posture_target, self.home_posture)
             and np.array_equal(self._com_target, self._com_goal)
@@ -373,8 +401,7 @@ class WholeBodyIK:
         self._hand.target_world = hand
         self._margin, self._settled = float(margin), bool(settled)
         self._set_posture_targets()
-        self._com.target_world = np.r_[self._com_target, 0.0]
-        self._polygon.margin = self._margin
+        self._send_balance_targets()
         self.robot.state.q = saved_q
         self.robot.state.qd = np.zeros_like(self.robot.state.qd)
         self.robot.update_kinematics()

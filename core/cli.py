@@ -22,6 +22,7 @@ from typing import NoReturn
 import numpy as np
 
 from hoap_actions import ENV_IDS, __version__
+from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.scene import CAMERAS
 from hoap_actions.episodes import compare_policies, film_episode, summarise
 from hoap_actions.errors import HoapActionsError, InvalidInputError
@@ -97,18 +98,19 @@ def _demo(args: argparse.Namespace) -> int:
             for name, path in (("video", args.video), ("snapshot", args.snapshot), ("report", args.json))
         }
         results = compare_policies(args.env, {name: (name, kwargs[name]) for name in names},
-                                   range(args.seed, last_seed + 1), workers=args.workers)
+                                   range(args.seed, last_seed + 1), workers=args.workers, robot=args.robot)
         if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the chosen one again, filmed
             film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed + args.film,
-                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera)
+                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera,
+                         robot=args.robot)
         summaries = {name: summarise(episodes) for name, episodes in results.items()}
         if claim["report"]:  # without wall times: the same file whatever --workers
-            report = {"env": args.env, "seeds": [args.seed, last_seed],
+            report = {"env": args.env, "robot": args.robot, "seeds": [args.seed, last_seed],
                       "policies": {name: summarise(episodes, timings=False) for name, episodes in results.items()}}
             claim["report"].write_text(json.dumps(report, indent=2) + "\n")
     for name, summary in summaries.items():
         low, high = summary["success_ci95"]
-        print(f"{name} policy on {args.env}: success rate {summary['success_rate']:.1%} (95 % interval {low:.0%}-{high:.0%}) "
+        print(f"{name} policy on {args.env} ({args.robot} robot): success rate {summary['success_rate']:.1%} (95 % interval {low:.0%}-{high:.0%}) "
               f"over {args.episodes} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}, "
               f"mean episode {summary['mean_wall_s']:.1f} s")
         for reason, count in summary["reasons"].items():
@@ -244,6 +246,9 @@ def build_parser() -> argparse.ArgumentParser:
                            "(default: random)")
     demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
     demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
+    demo.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
+                      help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs welded "
+                           "(it cannot fall, and its physics is cheaper)")
     demo.add_argument("--episodes", type=_positive_int, default=10)
     demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
     demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")

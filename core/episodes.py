@@ -102,13 +102,14 @@ def film_episode(
     video: Path | None = None,
     snapshot: Path | None = None,
     camera: str = "closeup",
+    robot: str = "full",
 ) -> EpisodeResult:
     """One episode filmed from ``camera``: an mp4 of it at ``video`` and, at ``snapshot``, the policy's
     own picture of it (``figure()``, e.g. the PHMM policy's Fig. 9) or else its first frame. Pass the
     partial paths that :func:`hoap_actions.outputs.claimed_file` yields, so the outputs are checked
     before the episode runs."""
     check_seed(seed)
-    env = gymnasium.make(env_id, render_mode="rgb_array", camera=camera, control_mode=control_mode)
+    env = gymnasium.make(env_id, render_mode="rgb_array", camera=camera, control_mode=control_mode, robot=robot)
     try:
         policy = policy_factory(env)
         frames: list[np.ndarray] = []
@@ -128,14 +129,14 @@ def film_episode(
 _WORKER: dict[str, Any] = {}
 
 
-def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]]) -> None:
+def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]], robot: str) -> None:
     from hoap_actions.controllers.policies import policy_class
 
     classes = {name: policy_class(cls, env_id) for name, (cls, _) in policies.items()}
     modes = {c.control_mode for c in classes.values()}
     if len(modes) != 1:
         raise InvalidInputError(f"the compared policies act through different control modes {sorted(modes)}")
-    env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop())
+    env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop(), robot=robot)
     atexit.register(env.close)  # a worker process closes its simulator before the interpreter goes
     _WORKER.update(env=env, policies={name: classes[name](env, **kwargs) for name, (_, kwargs) in policies.items()})
 
@@ -145,12 +146,13 @@ def _run_seed(seed: int) -> dict[str, EpisodeResult]:
 
 
 def compare_policies(
-    env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1
+    env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1, robot: str = "full"
 ) -> dict[str, list[EpisodeResult]]:
     """Every policy on every seed's layout, interleaved (seed by seed, policy after policy, in one
     env per worker), so machine load falls alike on all. ``policies`` maps a label to a policy name
     (:data:`~hoap_actions.controllers.policies.POLICIES`) and its keyword arguments. Episodes
-    depend on their seed alone, so ``workers`` processes give the serial results."""
+    depend on their seed alone, so ``workers`` processes give the serial results. ``robot`` is the
+    env's robot model (``"full"`` or ``"fixed_legs"``)."""
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise InvalidInputError("seeds is empty; give at least one")
@@ -158,7 +160,7 @@ def compare_policies(
         check_seed(s)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInputError(f"workers must be a positive integer; got {workers!r}")
-    initargs = (env_id, policies)
+    initargs = (env_id, policies, robot)
     if workers == 1:
         _start_worker(*initargs)
         try:

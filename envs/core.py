@@ -19,7 +19,7 @@ from gymnasium import spaces
 
 from hoap_actions.controllers.hand_control import RobotDescription
 from hoap_actions.envs.controls import CONTROL_MODES, make_controller
-from hoap_actions.envs.robot import Robot
+from hoap_actions.envs.robot import ROBOT_MODELS, Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Camera, Sim, check_image_size
 from hoap_actions.envs.tasks.base import Task
@@ -75,6 +75,10 @@ class HoapEnv(gymnasium.Env):
         own part (see the task's docstring).
       - ``"achieved_goal"`` / ``"desired_goal"``: the task's goal vectors (m), as in goal-based envs.
 
+    Robot (``robot``): ``"full"``, the free-standing humanoid (default), or ``"fixed_legs"``, the same
+    robot bolted at the pelvis with its legs welded in the standing posture: it cannot fall, and a
+    step costs about a fifth of the physics. Observations have the same layout for both.
+
     Actions: a Box in [-1, 1] (see the control mode); values outside it are clipped to it, as
     Gymnasium's bounded Box actions are, and ``info["action_clipped"]`` says so on that step.
 
@@ -97,6 +101,7 @@ class HoapEnv(gymnasium.Env):
         render_width: int = 320,
         render_height: int = 240,
         reward_type: str = "sparse",
+        robot: str = "full",
         **task_kwargs: Any,
     ) -> None:
         self._check_keywords(task_kwargs)
@@ -108,13 +113,15 @@ class HoapEnv(gymnasium.Env):
             raise InvalidInputError(f"control_mode={control_mode!r} is not supported; accepted: {list(CONTROL_MODES)}")
         if reward_type not in ("sparse", "dense"):
             raise InvalidInputError(f"reward_type={reward_type!r} is not supported; accepted: 'sparse', 'dense'")
+        if robot not in ROBOT_MODELS:
+            raise InvalidInputError(f"robot={robot!r} is not a robot model; accepted: {list(ROBOT_MODELS)}")
         check_image_size(render_width, render_height, what="render")
         self.render_mode = render_mode
         self.control_mode = control_mode
         self.reward_type = reward_type
         self.sim = Sim(gui=render_mode == "human")
         try:
-            self.robot = Robot(self.sim)
+            self.robot = Robot(self.sim, model=robot)
             self.scene = Scene(self.sim)
             if camera not in self.sim.cameras:
                 raise InvalidInputError(
@@ -227,8 +234,11 @@ class HoapEnv(gymnasium.Env):
 
     @property
     def robot_description(self) -> RobotDescription:
-        """The robot's joint names (the order of the observation's joint vectors) and home posture."""
-        return RobotDescription(tuple(self.robot.joint_names), tuple(float(v) for v in self.robot.home_posture))
+        """The robot's joint names (the order of the observation's joint vectors), home posture and
+        whether its legs are welded."""
+        return RobotDescription(
+            tuple(self.robot.joint_names), tuple(float(v) for v in self.robot.home_posture), self.robot.fixed_legs
+        )
 
     @property
     def hand_status(self) -> HandStatus:

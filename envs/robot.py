@@ -1,9 +1,11 @@
 """The HOAP-3-style humanoid (``urdf/hoap3.urdf``) inside a :class:`~hoap_actions.envs.sim.Sim`.
 
-:class:`Robot` loads the model free-floating, stands it on the floor, and drives its 28 joints by
-position control with the HOAP-3 torque limits and joint speeds clamped at the URDF's velocity limits
-(5 rad/s). Joint vectors are ``(28,)`` float arrays in
-:attr:`Robot.joint_names` order (radians); quaternions are ``(x, y, z, w)``.
+:class:`Robot` loads the model, stands it on the floor, and drives its joints by position control with
+the HOAP-3 torque limits and joint speeds clamped at the URDF's velocity limits (5 rad/s). Two models
+(:data:`ROBOT_MODELS`): ``"full"``, free-standing on 28 motorised joints, and ``"fixed_legs"``, the same
+robot bolted at the pelvis with its legs welded in the standing posture (16 motors, a fifth of the
+physics cost). Joint vectors are ``(28,)`` float arrays in :attr:`Robot.joint_names` order (radians)
+for both, so observations and policies do not depend on the model; quaternions are ``(x, y, z, w)``.
 """
 
 from __future__ import annotations
@@ -15,8 +17,10 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.envs import world
 from hoap_actions.envs.sim import Sim
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS
 
-URDF_NAME = "hoap3.urdf"
+ROBOT_MODELS = {"full": "hoap3.urdf", "fixed_legs": "hoap3_fixed_legs.urdf"}
+"""Robot model name -> URDF: the free-standing humanoid, or the one whose legs are welded to a fixed pelvis."""
 SIDES = ("right", "left")
 ARM_JOINTS = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_yaw", "gripper")
 FRAMES = ("r_tcp", "l_tcp", "r_sole", "l_sole", "camera")
@@ -32,10 +36,7 @@ FALL_TILT = 0.6  # rad, pelvis tilt from vertical beyond which the robot has fal
 
 # Standing, knees bent 0.4 rad (hips stay above the ankles, soles flat, pelvis upright); upper arms
 # 15 deg forward of hanging, forearms horizontal about 6 cm above the table top, hands open.
-HOME = {
-    "hip_pitch": -0.2,
-    "knee": 0.4,
-    "ankle_pitch": -0.2,
+HOME = STANDING_LEGS | {
     "shoulder_pitch": np.radians(75.0),
     "elbow": np.radians(-75.0),
     "gripper": GRIPPER_OPEN,
@@ -54,14 +55,21 @@ def up_z(quats: np.ndarray) -> np.ndarray:
 class Robot:
     """The humanoid as body ``name`` of ``sim``, standing with its ankles' midpoint at ``feet_xy``.
 
-    The base floats free (nothing welds it). Friction (1.0, with anchors against creep) on the soles,
-    palms and thumbs comes from the URDF. Self-collision is off: the home posture and table-top reaches
-    keep the limbs apart, and whole-body IK (placo) can avoid self-contact where it matters.
+    With ``model="full"`` the base floats free (nothing welds it); with ``model="fixed_legs"`` the pelvis
+    is fixed where the standing robot's would be and the 12 leg joints are welded at
+    :data:`~hoap_actions.urdf.STANDING_LEGS`: they stay in the joint vectors at those angles (speed 0),
+    their range is that one angle, and targets for them are held there. Friction (1.0, with anchors
+    against creep) on the soles, palms and thumbs comes from the URDF. Self-collision is off: the home
+    posture and table-top reaches keep the limbs apart, and whole-body IK (placo) can avoid
+    self-contact where it matters.
 
     Args:
         sim: the simulator that owns the body.
         name: body name in ``sim``.
-        feet_xy: (x, y) of the midpoint between the ankles on the floor (m).
+        model: ``"full"`` or ``"fixed_legs"`` (:data:`ROBOT_MODELS`).
+        feet_xy: (x, y) of the midpoint between the ankles on the floor (m); default
+            :data:`~hoap_actions.envs.world.ROBOT_FEET_XY`, or
+            :data:`~hoap_actions.envs.world.FIXED_LEGS_FEET_XY` for the welded-legs model.
         yaw: heading about +z (rad); 0 faces +x.
         floor_z: height of the floor plane (m); the floor body itself belongs to the scene.
         position_gain, velocity_gain: PyBullet position-control gains, in [0, 1].
@@ -71,7 +79,8 @@ class Robot:
         self,
         sim: Sim,
         name: str = "robot",
-        feet_xy: tuple[float, float] = world.ROBOT_FEET_XY,
+        model: str = "full",
+        feet_xy: tuple[float, float] | None = None,
         yaw: float = 0.0,
         floor_z: float = world.FLOOR_Z,
         position_gain: float = 0.3,
@@ -80,30 +89,40 @@ class Robot:
         for label, gain in (("position_gain", position_gain), ("velocity_gain", velocity_gain)):
             if not 0.0 <= gain <= 1.0:
                 raise InvalidInputError(f"{label}={gain} is outside [0, 1], the range of PyBullet's position gains")
-        self.sim, self.name = sim, name
+        if model not in ROBOT_MODELS:
+            raise InvalidInputError(f"robot model {model!r} is not known; accepted: {list(ROBOT_MODELS)}")
+        self.sim, self.name, self.model = sim, name, model
+        self.fixed_legs = model == "fixed_legs"
+        if feet_xy is None:
+            feet_xy = world.FIXED_LEGS_FEET_XY if self.fixed_legs else world.ROBOT_FEET_XY
         self.feet_xy = (float(feet_xy[0]), float(feet_xy[1]))
         self.yaw, self.floor_z = float(yaw), float(floor_z)
         self.position_gain, self.velocity_gain = float(position_gain), float(velocity_gain)
-        sim.load_urdf(name, URDF_NAME)
-        joints = sim.joints(name)
-        self._indices = [j.index for j in joints]
-        self.joint_names: tuple[str, ...] = tuple(j.name for j in joints)
-        self.lower = np.array([j.lower for j in joints])
-        self.upper = np.array([j.upper for j in joints])
-        self.max_velocity = np.array([j.max_velocity for j in joints])
-        self.max_force = np.array([j.max_force for j in joints])
+        sim.load_urdf(name, ROBOT_MODELS[model], fixed_base=self.fixed_legs)
+        motors = {j.name: j for j in sim.joints(name)}
+        self.joint_names: tuple[str, ...] = tuple(n for n in sim.joint_names(name) if n in motors or n in LEG_JOINTS)
+        self._position = {n: i for i, n in enumerate(self.joint_names)}
+        self._motorised = np.array([i for i, n in enumerate(self.joint_names) if n in motors])
+        """Positions in the joint vector of the joints with a motor (all 28, or 16 with welded legs)."""
+        self._indices = [motors[self.joint_names[i]].index for i in self._motorised]
+        self._motor_index = dict(zip(self._motorised.tolist(), self._indices))  # joint-vector position -> PyBullet joint
+        welds = {n: STANDING_LEGS.get(n[2:], 0.0) for n in self.joint_names if n not in motors}
+        self.lower = np.array([motors[n].lower if n in motors else welds[n] for n in self.joint_names])
+        self.upper = np.array([motors[n].upper if n in motors else welds[n] for n in self.joint_names])
+        self.max_velocity = np.array([motors[n].max_velocity if n in motors else 0.0 for n in self.joint_names])
+        self.max_force = np.array([motors[n].max_force if n in motors else 0.0 for n in self.joint_names])
         for array in (self.lower, self.upper, self.max_velocity, self.max_force):
             array.flags.writeable = False
         # A servo never turns faster than its top speed, whatever pushes the limb; the motors'
         # maxVelocity alone left contacts and the other joints whipping a joint to 23 rad/s.
-        sim.set_joint_velocity_limits(name, self._indices, self.max_velocity)
-        self._position = {n: i for i, n in enumerate(self.joint_names)}
+        sim.set_joint_velocity_limits(name, self._indices, self.max_velocity[self._motorised])
         self._links = {f: sim.link_index(name, f) for f in FRAMES}
         self._feet = [sim.link_index(name, f"{p}_foot") for p in "rl"]
         self._soles = [self._links["r_sole"], self._links["l_sole"]]
-        home = np.zeros(len(joints))
+        home = np.zeros(len(self.joint_names))
         for n, value in HOME.items():
             home[[self._position[f"{p}_{n}"] for p in "rl"]] = value
+        home = np.clip(home, self.lower, self.upper)  # welded legs: their weld angles
         home.flags.writeable = False
         self.home_posture = home
         self._targets = home.copy()
@@ -137,7 +156,7 @@ class Robot:
         floor; the motors then hold ``q``. Out-of-range values are clipped as in :meth:`set_targets`.
         """
         q = self.home_posture if q is None else self._checked(q, "q")
-        self.sim.reset_joints(self.name, self._indices, q)
+        self.sim.reset_joints(self.name, self._indices, q[self._motorised])
         self.sim.set_base_pose(self.name, np.zeros(3))  # base (centre-of-mass) frame at the origin
         positions, quats = self.sim.link_poses(self.name, self._soles + self._feet)
         base_rot = Rotation.from_euler("z", self.yaw) * Rotation.from_quat(quats[:2]).mean().inv()
@@ -148,16 +167,18 @@ class Robot:
         self.set_targets(q)
 
     def set_targets(self, q: np.ndarray) -> None:
-        """Position targets for all 28 joints, driven with the HOAP-3 peak torques at up to 5 rad/s.
+        """Position targets for all 28 joints, driven with the HOAP-3 peak torques at up to 5 rad/s
+        (welded legs hold their angles whatever is asked of them).
 
         Raises :class:`InvalidInputError` for a wrong shape or NaN/inf. Targets beyond a joint's
         range are clipped to it, as a servo's own limits would (MuJoCo's ``ctrlrange`` behaves the
         same); :attr:`targets` shows what was sent.
         """
         self._targets = self._checked(q, "q")
+        motorised = self._motorised
         self.sim.set_joint_targets(
-            self.name, self._indices, self._targets, self.max_force, self.max_velocity,
-            self.position_gain, self.velocity_gain,
+            self.name, self._indices, self._targets[motorised], self.max_force[motorised],
+            self.max_velocity[motorised], self.position_gain, self.velocity_gain,
         )
 
     def set_gripper(self, side: str, closure: float) -> None:
@@ -172,18 +193,22 @@ class Robot:
         k = self._position[f"{self._side(side)}_gripper"]
         self._targets[k] = GRIPPER_OPEN + min(max(closure, 0.0), 1.0) * (GRIPPER_CLOSED - GRIPPER_OPEN)
         self.sim.set_joint_targets(
-            self.name, [self._indices[k]], self._targets[k : k + 1], self.max_force[k : k + 1],
+            self.name, [self._motor_index[k]], self._targets[k : k + 1], self.max_force[k : k + 1],
             self.max_velocity[k : k + 1], self.position_gain, self.velocity_gain,
         )
 
     # ------------------------------------------------------------------ state
     def joint_positions(self) -> np.ndarray:
         """Joint angles (28,), rad."""
-        return self.sim.joint_states(self.name, self._indices)[0]
+        q = self.lower.copy()  # the welded joints' angles; the motorised ones are overwritten
+        q[self._motorised] = self.sim.joint_states(self.name, self._indices)[0]
+        return q
 
     def joint_velocities(self) -> np.ndarray:
-        """Joint speeds (28,), rad/s."""
-        return self.sim.joint_states(self.name, self._indices)[1]
+        """Joint speeds (28,), rad/s (0 for welded joints)."""
+        qd = np.zeros(len(self.joint_names))
+        qd[self._motorised] = self.sim.joint_states(self.name, self._indices)[1]
+        return qd
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """World position (3,) and quaternion (x, y, z, w) of the pelvis frame (on the waist-pitch axis)."""

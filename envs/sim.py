@@ -367,6 +367,11 @@ class Sim:
         self.body_id(name)
         return self._joints[name]
 
+    def joint_names(self, name: str) -> list[str]:
+        """Every joint of body ``name`` in model order, fixed ones included (:meth:`joints` lists the movable ones)."""
+        body = self.body_id(name)
+        return [self._p.getJointInfo(body, j)[1].decode() for j in range(self._p.getNumJoints(body))]
+
     def link_index(self, name: str, link_name: str) -> int:
         """Index of link ``link_name`` of body ``name`` (-1 is the base)."""
         body = self.body_id(name)

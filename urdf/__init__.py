@@ -7,6 +7,13 @@ from pathlib import Path
 
 from hoap_actions.errors import DataFileError
 
+LEG_JOINTS = tuple(f"{side}_{joint}" for side in "rl" for joint in (
+    "hip_yaw", "hip_roll", "hip_pitch", "knee", "ankle_pitch", "ankle_roll"))
+"""The 12 leg joints, right leg first, hip to ankle."""
+STANDING_LEGS = {"hip_pitch": -0.2, "knee": 0.4, "ankle_pitch": -0.2}
+"""Leg angles (rad, both sides; the others 0) of the standing home posture: knees bent 0.4 rad, hips
+over the ankles, soles flat. ``hoap3_fixed_legs.urdf`` welds its legs at these angles."""
+
 
 def urdf_path(name: str) -> Path:
     """Absolute path of the packaged URDF file ``name`` (e.g. ``"hoap3.urdf"``)."""
