@@ -6,9 +6,9 @@ and the median time of a ``reset``, which builds the physics world afresh every 
 panda-gym installed (``pip install "hoap-actions[bench]"``), each env and control mode is also timed
 against its panda-gym peer (``PandaPickAndPlace-v3`` for PegInsert, ``PandaReach-v3`` for Reach), the two
 taking turns run after run on random actions, and the ratio of their simulated seconds per wall second
-is printed.
+is printed. Both robot models are timed: ``full`` (free-standing) and ``fixed_legs`` (legs welded).
 
-    python benchmarks/env_speed.py [--runs 5] [--steps 300] [--peers-only]
+    python benchmarks/env_speed.py [--runs 5] [--steps 300] [--peers-only] [--robots full fixed_legs]
 
 Printed and written to ``results/env_speed.json``; earlier figures are in ``results/NOTES.md``.
 """
@@ -25,6 +25,7 @@ import gymnasium
 
 import hoap_actions
 from hoap_actions.envs.core import PHYSICS_STEPS_PER_ACTION
+from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.sim import TIMESTEP
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -69,9 +70,9 @@ def time_resets(env_id: str, control_mode: str, n: int) -> float:
     return statistics.median(walls)
 
 
-def compare_with_peers(runs: int, steps: int, sim_seconds_per_step: float) -> list[dict]:
-    """Simulated seconds per wall second of each env and control mode against its panda-gym peer, the
-    two timed in turn ``runs`` times (random actions, no rendering); [] without panda-gym."""
+def compare_with_peers(runs: int, steps: int, sim_seconds_per_step: float, robots: list[str]) -> list[dict]:
+    """Simulated seconds per wall second of each env, robot and control mode against its panda-gym
+    peer, the two timed in turn ``runs`` times (random actions, no rendering); [] without panda-gym."""
     try:
         import panda_gym  # noqa: F401  (registers the Panda ids)
     except ImportError:
@@ -82,19 +83,20 @@ def compare_with_peers(runs: int, steps: int, sim_seconds_per_step: float) -> li
         probe = gymnasium.make(peer)
         peer_sim_s = probe.unwrapped.sim.timestep * probe.unwrapped.sim.n_substeps  # per env step
         probe.close()
-        for control_mode in ("joint_delta", "ee_delta"):
-            ours, theirs = [], []
-            for seed in range(runs):
-                ours.append(time_run(env_id, False, steps, seed, "random", control_mode=control_mode))
-                theirs.append(time_run(peer, False, steps, seed, "random"))
-            ours_rate = steps * sim_seconds_per_step / statistics.median(ours)
-            peer_rate = steps * peer_sim_s / statistics.median(theirs)
-            out.append({"env_id": env_id, "control_mode": control_mode, "peer": peer, "runs": runs, "steps": steps,
-                        "sim_s_per_wall_s": ours_rate, "peer_sim_s_per_wall_s": peer_rate,
-                        "steps_per_s": steps / statistics.median(ours),
-                        "peer_steps_per_s": steps / statistics.median(theirs), "ratio": ours_rate / peer_rate})
-            print(f"{env_id:28s} {control_mode:11s} {ours_rate:6.2f} sim s / wall s against {peer} "
-                  f"{peer_rate:6.2f}: {ours_rate / peer_rate:.2f}x")
+        for robot in robots:
+            for control_mode in ("joint_delta", "ee_delta"):
+                ours, theirs = [], []
+                for seed in range(runs):
+                    ours.append(time_run(env_id, False, steps, seed, "random", control_mode=control_mode, robot=robot))
+                    theirs.append(time_run(peer, False, steps, seed, "random"))
+                ours_rate = steps * sim_seconds_per_step / statistics.median(ours)
+                peer_rate = steps * peer_sim_s / statistics.median(theirs)
+                out.append({"env_id": env_id, "robot": robot, "control_mode": control_mode, "peer": peer, "runs": runs,
+                            "steps": steps, "sim_s_per_wall_s": ours_rate, "peer_sim_s_per_wall_s": peer_rate,
+                            "steps_per_s": steps / statistics.median(ours),
+                            "peer_steps_per_s": steps / statistics.median(theirs), "ratio": ours_rate / peer_rate})
+                print(f"{env_id:28s} {robot:10s} {control_mode:11s} {ours_rate:6.2f} sim s / wall s against {peer} "
+                      f"{peer_rate:6.2f}: {ours_rate / peer_rate:.2f}x")
     return out
 
 
@@ -103,31 +105,34 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--peers-only", action="store_true", help="only the comparison with panda-gym")
+    parser.add_argument("--robots", nargs="+", choices=list(ROBOT_MODELS), default=list(ROBOT_MODELS))
     args = parser.parse_args(argv)
     sim_seconds_per_step = PHYSICS_STEPS_PER_ACTION * TIMESTEP
-    peers = compare_with_peers(args.runs, args.steps, sim_seconds_per_step)
+    peers = compare_with_peers(args.runs, args.steps, sim_seconds_per_step, args.robots)
     rows = []
-    for env_id in () if args.peers_only else hoap_actions.ENV_IDS:
-        for actions_kind, render in (("random", False), ("zero", False), ("random", True)):
-            steps = args.steps if not render else max(args.steps // 5, 20)
-            walls = [time_run(env_id, render, steps, seed, actions_kind) for seed in range(args.runs)]
-            median = statistics.median(walls)
-            row = {
-                "env_id": env_id,
-                "actions": actions_kind,
-                "render": render,
-                "steps_per_run": steps,
-                "runs": args.runs,
-                "median_steps_per_s": steps / median,
-                "median_sim_s_per_wall_s": steps * sim_seconds_per_step / median,
-                "median_physics_step_ms": 1e3 * median / (steps * PHYSICS_STEPS_PER_ACTION),
-            }
-            rows.append(row)
-            print(
-                f"{env_id:28s} {actions_kind:6s} render={str(render):5s}  {row['median_steps_per_s']:8.1f} steps/s  "
-                f"{row['median_sim_s_per_wall_s']:6.2f} sim s / wall s  "
-                f"({row['median_physics_step_ms']:.3f} ms per physics step incl. overhead)"
-            )
+    cases = [(env_id, robot, kind, render) for env_id in hoap_actions.ENV_IDS for robot in args.robots
+             for kind, render in (("random", False), ("zero", False), ("random", True))]
+    for env_id, robot, actions_kind, render in [] if args.peers_only else cases:
+        steps = args.steps if not render else max(args.steps // 5, 20)
+        walls = [time_run(env_id, render, steps, seed, actions_kind, robot=robot) for seed in range(args.runs)]
+        median = statistics.median(walls)
+        row = {
+            "env_id": env_id,
+            "robot": robot,
+            "actions": actions_kind,
+            "render": render,
+            "steps_per_run": steps,
+            "runs": args.runs,
+            "median_steps_per_s": steps / median,
+            "median_sim_s_per_wall_s": steps * sim_seconds_per_step / median,
+            "median_physics_step_ms": 1e3 * median / (steps * PHYSICS_STEPS_PER_ACTION),
+        }
+        rows.append(row)
+        print(
+            f"{env_id:28s} {robot:10s} {actions_kind:6s} render={str(render):5s}  {row['median_steps_per_s']:8.1f} steps/s  "
+            f"{row['median_sim_s_per_wall_s']:6.2f} sim s / wall s  "
+            f"({row['median_physics_step_ms']:.3f} ms per physics step incl. overhead)"
+        )
     resets = []
     for env_id in () if args.peers_only else hoap_actions.ENV_IDS:
         for control_mode in ("joint_delta", "ee_delta"):

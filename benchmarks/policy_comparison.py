@@ -8,9 +8,12 @@ mean episode wall time, reasons for failure; for the PHMM policy also the percep
 centre error of the target peg and hole) and each synthesised path's largest deviation from the
 executed hand path.
 
-    python benchmarks/policy_comparison.py [--seeds 30000 30200] [--workers 2] [--models DIR]
+Held-out layouts for the two robot models (``--robot full`` / ``fixed_legs``), declared before
+the first run of either on them: seeds 60000-60199, each robot run once.
 
-Writes ``results/policy_comparison.json``.
+    python benchmarks/policy_comparison.py [--seeds 30000 30200] [--workers 2] [--models DIR] [--robot fixed_legs]
+
+Writes ``results/policy_comparison.json`` (or ``--output``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import sys
 import time
 from pathlib import Path
 
+from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.episodes import compare_policies, summarise
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -33,19 +37,20 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs=2, default=HELD_OUT_SEEDS, metavar=("FIRST", "STOP"))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--models", type=Path, default=None, help="models directory (default: the shipped models)")
+    parser.add_argument("--robot", default="full", choices=list(ROBOT_MODELS))
     args = parser.parse_args()
     seeds = range(*args.seeds)
     phmm_kwargs = {} if args.models is None else {"models": str(args.models)}
     start = time.perf_counter()
     results = compare_policies("hoap_actions/PegInsert-v0", {"phmm": ("phmm", phmm_kwargs), "scripted": ("scripted", {})},
-                               seeds, workers=args.workers)
-    document = {"seeds": list(args.seeds), "workers": args.workers, "wall_s": time.perf_counter() - start,
+                               seeds, workers=args.workers, robot=args.robot)
+    document = {"seeds": list(args.seeds), "robot": args.robot, "workers": args.workers, "wall_s": time.perf_counter() - start,
                 "environment": numeric_environment(None)}
     for name, episodes in results.items():
         summary = summarise(episodes)
         document[name] = summary
         low, high = summary["success_ci95"]
-        print(f"{name:>9}: success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over {len(episodes)} layouts, "
+        print(f"{name:>9} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over {len(episodes)} layouts, "
               f"falls {summary['falls']}, mean episode {summary['mean_wall_s']:.1f} s, {summary['reasons']}")
         if "perception_error_m" in summary:
             p = summary["perception_error_m"]

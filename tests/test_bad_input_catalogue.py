@@ -566,8 +566,9 @@ def _wait_for(predicate, timeout: float = 60.0) -> bool:
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_row20_an_interrupted_record_leaves_no_partial_file(tmp_path, sig):
+    """The paper preset takes half a minute: the signal always lands while it records."""
     out = tmp_path / "demos.h5"
-    process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "small", "--out", str(out)],
+    process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "paper", "--out", str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert _wait_for(lambda: list(tmp_path.glob(f".*{PARTIAL_MARK}*"))), "the run never claimed its output"
     process.send_signal(sig)
@@ -578,7 +579,7 @@ def test_row20_an_interrupted_record_leaves_no_partial_file(tmp_path, sig):
 
 def test_row20_a_killed_records_partial_is_swept_by_the_next_run(tmp_path):
     out = tmp_path / "demos.h5"
-    process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "small", "--out", str(out)],
+    process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "paper", "--out", str(out)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     assert _wait_for(lambda: list(tmp_path.glob(f".*{PARTIAL_MARK}*")))
     process.kill()  # SIGKILL: nothing runs in the process, its partial stays
@@ -592,6 +593,6 @@ def test_row20_a_killed_records_partial_is_swept_by_the_next_run(tmp_path):
 def test_row21_cli_output_is_only_what_the_command_says():
     result = cli("demo", "--env", "hoap_actions/Reach-v0", "--episodes", "1")
     assert result.returncode == 0, result.stderr
-    assert result.stdout.startswith("random policy on hoap_actions/Reach-v0: success rate")
+    assert result.stdout.startswith("random policy on hoap_actions/Reach-v0 (full robot): success rate")
     assert "argv" not in result.stdout
     assert result.stderr == ""  # no PyBullet build line, no placo/hppfcl DeprecationWarning
