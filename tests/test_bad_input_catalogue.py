@@ -566,10 +566,12 @@ def _wait_for(predicate, timeout: float = 60.0) -> bool:
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_row20_an_interrupted_record_leaves_no_partial_file(tmp_path, sig):
-    """The paper preset takes half a minute: the signal always lands while it records."""
+    """The child gets SIGINT's default action even when the tests run in a background job (which
+    ignores SIGINT, and a child inherits that)."""
     out = tmp_path / "demos.h5"
     process = subprocess.Popen([sys.executable, "-m", "hoap_actions", "record", "--preset", "paper", "--out", str(out)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert _wait_for(lambda: list(tmp_path.glob(f".*{PARTIAL_MARK}*"))), "the run never claimed its output"
     process.send_signal(sig)
     _, err = process.communicate(timeout=SUBPROCESS_TIMEOUT)
