@@ -27,6 +27,7 @@ from hoap_actions.envs.scene import CAMERAS
 from hoap_actions.episodes import compare_policies, film_episode, summarise
 from hoap_actions.errors import HoapActionsError, InvalidInputError
 from hoap_actions.outputs import claimed_file
+from hoap_actions.parallel import LOCAL_RAY, check_ray_address
 from hoap_actions.seeds import MAX_SEED, check_seed
 
 EXIT_USAGE = 2  # a user's mistake or a bad file, as argparse uses it
@@ -74,6 +75,20 @@ def _path(text: str) -> Path:
     return Path(text)
 
 
+def _ray_address(text: str) -> str:
+    try:
+        return check_ray_address(text)
+    except InvalidInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _ray_option(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--ray", nargs="?", const=LOCAL_RAY, type=_ray_address, metavar="ADDRESS",
+                        help=f"run the {what} on Ray (pip install 'hoap-actions[ray]'): alone, a Ray instance on this "
+                             "machine; with an ADDRESS (auto, ray://head:10001), that cluster. --workers then sets the "
+                             "actors (default: one per CPU of the cluster); the output is the same")
+
+
 def _demo(args: argparse.Namespace) -> int:
     from hoap_actions.controllers.policies import policy_class
 
@@ -98,7 +113,8 @@ def _demo(args: argparse.Namespace) -> int:
             for name, path in (("video", args.video), ("snapshot", args.snapshot), ("report", args.json))
         }
         results = compare_policies(args.env, {name: (name, kwargs[name]) for name in names},
-                                   range(args.seed, last_seed + 1), workers=args.workers, robot=args.robot)
+                                   range(args.seed, last_seed + 1), workers=args.workers, robot=args.robot,
+                                   ray_address=args.ray)
         if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the chosen one again, filmed
             film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed + args.film,
                          classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera,
@@ -140,7 +156,8 @@ def _collect(args: argparse.Namespace) -> int:
 def _record(args: argparse.Namespace) -> int:
     from hoap_actions.envs.recording import record
 
-    path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite, workers=args.workers)
+    path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite, workers=args.workers,
+                  ray_address=args.ray)
     print(f"wrote {path}")
     return 0
 
@@ -252,6 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--episodes", type=_positive_int, default=10)
     demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
     demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
+    _ray_option(demo, "episodes")
     demo.add_argument("--video", type=_path, help="write an mp4 of one of the first policy's episodes here (--film)")
     demo.add_argument("--film", type=_nonnegative_int, default=0, metavar="K",
                       help="which episode --video and --snapshot show: K for seed S+K (default: 0, the first)")
@@ -279,6 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--seed", type=_seed, default=0)
     rec.add_argument("--workers", type=_positive_int, default=1,
                      help="processes sharing the episodes; the file is the same byte for byte (default: 1)")
+    _ray_option(rec, "recordings")
     rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
     rec.set_defaults(func=_record)
 

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import atexit
 import collections
-import multiprocessing
 import sys
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -19,6 +17,7 @@ from tqdm import tqdm
 
 import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.parallel import ordered_map
 from hoap_actions.seeds import check_seed
 
 
@@ -146,13 +145,15 @@ def _run_seed(seed: int) -> dict[str, EpisodeResult]:
 
 
 def compare_policies(
-    env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1, robot: str = "full"
+    env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1, robot: str = "full",
+    ray_address: str | None = None,
 ) -> dict[str, list[EpisodeResult]]:
     """Every policy on every seed's layout, interleaved (seed by seed, policy after policy, in one
     env per worker), so machine load falls alike on all. ``policies`` maps a label to a policy name
     (:data:`~hoap_actions.controllers.policies.POLICIES`) and its keyword arguments. Episodes
-    depend on their seed alone, so ``workers`` processes give the serial results. ``robot`` is the
-    env's robot model (``"full"`` or ``"fixed_legs"``)."""
+    depend on their seed alone, so ``workers`` processes, or Ray actors with ``ray_address`` (see
+    :func:`hoap_actions.parallel.ordered_map`), give the serial results. ``robot`` is the env's robot
+    model (``"full"`` or ``"fixed_legs"``)."""
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise InvalidInputError("seeds is empty; give at least one")
@@ -161,17 +162,15 @@ def compare_policies(
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInputError(f"workers must be a positive integer; got {workers!r}")
     initargs = (env_id, policies, robot)
-    if workers == 1:
+    if workers == 1 and ray_address is None:
         _start_worker(*initargs)
         try:
             rows = [_run_seed(s) for s in tqdm(seeds, desc="layouts", disable=not sys.stderr.isatty())]
         finally:
             _WORKER.pop("env").close()
     else:
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=initargs) as pool:
-            rows = list(tqdm(pool.map(_run_seed, seeds), total=len(seeds), desc="layouts",
-                             disable=not sys.stderr.isatty()))
+        results = ordered_map(_run_seed, seeds, _start_worker, initargs, workers, ray_address)
+        rows = list(tqdm(results, total=len(seeds), desc="layouts", disable=not sys.stderr.isatty()))
     return {name: [row[name] for row in rows] for name in policies}
 
 

@@ -26,9 +26,7 @@ from __future__ import annotations
 
 import atexit
 import logging
-import multiprocessing
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -50,6 +48,7 @@ from hoap_actions.envs.demo_tasks import (
 from hoap_actions.envs.demonstrator import Demonstrator
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_file
+from hoap_actions.parallel import ordered_map
 from hoap_actions.primitives.datasets import Demonstrations, Episode, GroundTruth, write_hdf5
 from hoap_actions.seeds import check_seed
 
@@ -147,7 +146,7 @@ def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) ->
 
 
 def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True,
-           workers: int = 1) -> Path:
+           workers: int = 1, ray_address: str | None = None) -> Path:
     """Record every episode of ``preset`` and write them to the HDF5 file ``out`` (see
     :mod:`hoap_actions.primitives.datasets`); returns ``out``.
 
@@ -155,14 +154,15 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
     path, an existing file (unless ``overwrite``) or another run writing it fails at once, not after
     the recording. The progress bar shows only when stderr is a terminal. ``workers`` processes share
     the episodes; every episode draws from its own ``(seed, index)`` generator in a freshly restored
-    scene, so the file is the same byte for byte whatever their number.
+    scene, so the file is the same byte for byte whatever their number, or with ``ray_address``
+    whatever Ray actors recorded them (see :func:`hoap_actions.parallel.ordered_map`).
     """
     check_seed(seed)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInputError(f"workers must be an int >= 1; got {workers!r}")
     tasks = preset_tasks(preset, seed)
     with claimed_file(out, overwrite, what="dataset") as partial:
-        demos = _record_tasks(preset, tasks, seed, progress, int(workers))
+        demos = _record_tasks(preset, tasks, seed, progress, int(workers), ray_address)
         write_hdf5(partial, demos)
     logger.info("recorded %d episodes (%d frames) of preset %r", len(demos), sum(e.T for e in demos), preset)
     return Path(out)
@@ -183,25 +183,25 @@ def _perform(job: tuple[DemoTask, int, int]) -> DemoRecording:
     return _WORKER["demonstrator"].perform(task, np.random.default_rng([seed, index + 1]))
 
 
-def _recordings(tasks: list[DemoTask], seed: int, workers: int, scene: DemoScene) -> Iterator[DemoRecording]:
-    """Each task performed, in order: in ``scene``, or spread over ``workers`` spawned processes."""
+def _recordings(tasks: list[DemoTask], seed: int, workers: int, scene: DemoScene,
+                ray_address: str | None) -> Iterator[DemoRecording]:
+    """Each task performed, in order: in ``scene``, or spread over ``workers`` spawned processes or Ray actors."""
     jobs = [(task, seed, index) for index, task in enumerate(tasks)]
-    if workers == 1:
+    if workers == 1 and ray_address is None:
         demonstrator = Demonstrator(scene)
         for task, _, index in jobs:
             yield demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
         return
-    context = multiprocessing.get_context("spawn")  # PyBullet and placo do not survive a fork
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_worker) as pool:
-        yield from pool.map(_perform, jobs)
+    yield from ordered_map(_perform, jobs, _start_worker, (), workers, ray_address)
 
 
-def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1) -> Demonstrations:
+def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1,
+                  ray_address: str | None = None) -> Demonstrations:
     episodes, table_contacts, missed_grasps = [], [], []
     scene = DemoScene()  # the recorded scene's numbers, and the scene itself for a single worker
     try:
         scene_parameters = scene.parameters()
-        bar = tqdm(_recordings(tasks, seed, workers, scene), total=len(tasks), desc=f"recording {preset}",
+        bar = tqdm(_recordings(tasks, seed, workers, scene, ray_address), total=len(tasks), desc=f"recording {preset}",
                    unit="episode", disable=not (progress and sys.stderr.isatty()))
         for index, (task, recording) in enumerate(zip(tasks, bar)):
             episodes.append(_episode(task, recording, seed, index))
