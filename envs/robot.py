@@ -198,17 +198,22 @@ class Robot:
         )
 
     # ------------------------------------------------------------------ state
+    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint angles (28,), rad, and speeds (28,), rad/s (0 for welded joints), from one read."""
+        positions, velocities = self.sim.joint_states(self.name, self._indices)
+        q = self.lower.copy()  # the welded joints' angles; the motorised ones are overwritten
+        q[self._motorised] = positions
+        qd = np.zeros(len(self.joint_names))
+        qd[self._motorised] = velocities
+        return q, qd
+
     def joint_positions(self) -> np.ndarray:
         """Joint angles (28,), rad."""
-        q = self.lower.copy()  # the welded joints' angles; the motorised ones are overwritten
-        q[self._motorised] = self.sim.joint_states(self.name, self._indices)[0]
-        return q
+        return self.joint_state()[0]
 
     def joint_velocities(self) -> np.ndarray:
         """Joint speeds (28,), rad/s (0 for welded joints)."""
-        qd = np.zeros(len(self.joint_names))
-        qd[self._motorised] = self.sim.joint_states(self.name, self._indices)[1]
-        return qd
+        return self.joint_state()[1]
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """World position (3,) and quaternion (x, y, z, w) of the pelvis frame (on the waist-pitch axis)."""

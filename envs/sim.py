@@ -235,6 +235,7 @@ class Sim:
         self.gui = gui
         self._bodies: dict[str, int] = {}
         self._joints: dict[str, list[JointInfo]] = {}
+        self._base_offsets: dict[int, tuple] = {}
         self._recipe: list[tuple[str, tuple, dict]] = []
         self.cameras: dict[str, Camera] = {}
         self._configure_world()
@@ -267,6 +268,7 @@ class Sim:
         self._p.resetSimulation()
         self._bodies.clear()
         self._joints.clear()
+        self._base_offsets.clear()
         self._configure_world()
         for method, args, kwargs in recipe:
             getattr(self, method)(*args, **kwargs)
@@ -408,13 +410,20 @@ class Sim:
             if link == -1:
                 pos, quat = self._p.getBasePositionAndOrientation(body)
                 # the base's URDF frame differs from its centre-of-mass frame by the inertial offset
-                inv_pos, inv_quat = self._p.invertTransform(*self._p.getDynamicsInfo(body, -1)[3:5])
-                pos, quat = self._p.multiplyTransforms(pos, quat, inv_pos, inv_quat)
+                pos, quat = self._p.multiplyTransforms(pos, quat, *self._base_offset(body))
             else:
                 state = self._p.getLinkState(body, link, computeForwardKinematics=True)
                 pos, quat = state[4], state[5]
             positions[row], quats[row] = pos, quat
         return positions, quats
+
+    def _base_offset(self, body: int) -> tuple:
+        """The base's centre-of-mass frame to its URDF frame; read once per body (its inertial frame
+        is fixed at load) instead of on every pose query."""
+        offset = self._base_offsets.get(body)
+        if offset is None:
+            offset = self._base_offsets[body] = self._p.invertTransform(*self._p.getDynamicsInfo(body, -1)[3:5])
+        return offset
 
     def joint_states(self, name: str, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities of the given joints."""
@@ -576,8 +585,9 @@ class Sim:
     def set_solver_iterations(self, iterations: int) -> None:
         """Cap the constraint solver's iterations per step (PyBullet's default is 50).
 
-        Fewer iterations step faster and hold joints and contacts less stiffly; the environments keep
-        the default. ``benchmarks/physics_floor.py`` measures what the cap buys.
+        Fewer iterations step faster and hold joints and contacts less stiffly; the environments choose
+        by robot model (``envs/core.py``: ``SOLVER_ITERATIONS``). ``benchmarks/physics_floor.py``
+        measures what the cap buys.
         """
         if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
             raise InvalidInputError(f"iterations must be an int >= 1, got {iterations!r}")
