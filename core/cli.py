@@ -82,6 +82,12 @@ def _ray_address(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _robot_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
+                        help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs welded "
+                             "(it cannot fall, and it simulates about 3x faster)")
+
+
 def _ray_option(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument("--ray", nargs="?", const=LOCAL_RAY, type=_ray_address, metavar="ADDRESS",
                         help=f"run the {what} on Ray (pip install 'hoap-actions[ray]'): alone, a Ray instance on this "
@@ -148,8 +154,10 @@ def _collect(args: argparse.Namespace) -> int:
     if args.models is not None and args.policy != "phmm":
         raise InvalidInputError("--models is for the phmm policy; use --policy phmm or leave --models out")
     kwargs = {"models": str(args.models)} if args.models is not None else {}
-    path = collect(args.env, args.policy, args.episodes, args.seed, args.dataset_id, kwargs, overwrite=args.overwrite)
-    print(f"wrote the Minari dataset {args.dataset_id} ({args.episodes} episodes of the {args.policy} policy): {path}")
+    path = collect(args.env, args.policy, args.episodes, args.seed, args.dataset_id, kwargs, overwrite=args.overwrite,
+                   robot=args.robot)
+    print(f"wrote the Minari dataset {args.dataset_id} ({args.episodes} episodes of the {args.policy} policy, "
+          f"{args.robot} robot): {path}")
     return 0
 
 
@@ -263,9 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "(default: random)")
     demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
     demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
-    demo.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
-                      help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs welded "
-                           "(it cannot fall, and it simulates about 3x faster)")
+    _robot_option(demo)
     demo.add_argument("--episodes", type=_positive_int, default=10)
     demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
     demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
@@ -284,6 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
     col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, imitation)")
     col.add_argument("--policy", required=True, choices=["random", "scripted", "phmm"])
     col.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
+    _robot_option(col)
     col.add_argument("--episodes", type=_positive_int, default=10)
     col.add_argument("--seed", type=_seed, default=0, help="episodes are the layouts of seeds S, S+1, ...")
     col.add_argument("--dataset-id", required=True, help="Minari id, e.g. hoap_actions/PegInsert/scripted-v0")

@@ -22,6 +22,7 @@ from typing import Any
 import gymnasium
 
 import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_directory
@@ -53,16 +54,19 @@ def _datasets_root(root: Path) -> Iterator[None]:
 
 
 def collect(env_id: str, policy: str, episodes: int, seed: int, dataset_id: str,
-            policy_kwargs: dict[str, Any] | None = None, overwrite: bool = False) -> Path:
+            policy_kwargs: dict[str, Any] | None = None, overwrite: bool = False, robot: str = "full") -> Path:
     """Run the policy named ``policy`` (:data:`~hoap_actions.controllers.policies.POLICIES`) for
-    ``episodes`` episodes on ``env_id`` and write them as the Minari dataset ``dataset_id``
-    (``namespace/name-v0``) in Minari's datasets folder; returns its path."""
+    ``episodes`` episodes on ``env_id`` with the ``robot`` model (``"full"`` or ``"fixed_legs"``, kept in
+    the dataset's env spec) and write them as the Minari dataset ``dataset_id`` (``namespace/name-v0``)
+    in Minari's datasets folder; returns its path."""
     minari = _minari()
     from hoap_actions.controllers.policies import policy_class
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise InvalidInputError(f"episodes must be a positive integer; got {episodes!r}")
     check_seed(seed, count=episodes)
+    if robot not in ROBOT_MODELS:
+        raise InvalidInputError(f"robot={robot!r} is not a robot model; accepted: {list(ROBOT_MODELS)}")
     cls = policy_class(policy, env_id)
     try:
         namespace, name, version = minari.dataset.minari_dataset.parse_dataset_id(dataset_id)
@@ -77,7 +81,8 @@ def collect(env_id: str, policy: str, episodes: int, seed: int, dataset_id: str,
     if namespace is not None and namespace not in list_local_namespaces():
         create_namespace(namespace)
     with claimed_directory(target, overwrite, what="dataset") as staging, _datasets_root(staging / "root"):
-        env = minari.DataCollector(gymnasium.make(env_id, control_mode=cls.control_mode), record_infos=False)
+        env = minari.DataCollector(gymnasium.make(env_id, control_mode=cls.control_mode, robot=robot),
+                                     record_infos=False)
         try:
             agent = cls(env, **(policy_kwargs or {}))
             for episode_seed in range(seed, seed + episodes):

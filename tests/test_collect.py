@@ -68,3 +68,19 @@ def test_bad_ids_and_policies_are_refused_before_any_episode(tmp_path, monkeypat
     assert main(["collect", "--policy", "scripted", "--env", "hoap_actions/Reach-v0", "--dataset-id", "a/b-v0"]) == 2
     assert "does not act in hoap_actions/Reach-v0" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_a_welded_legs_dataset_recovers_that_robot(tmp_path, monkeypatch):
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    collect("hoap_actions/PegInsert-v0", "scripted", 1, 3, "hoap_actions/PegInsert/fixed-legs-v0", robot="fixed_legs")
+    dataset = minari.load_dataset("hoap_actions/PegInsert/fixed-legs-v0")
+    env = dataset.recover_environment()
+    try:
+        assert env.unwrapped.robot.fixed_legs
+        episode = next(dataset.iterate_episodes([0]))
+        obs, _ = env.reset(seed=3)
+        np.testing.assert_array_equal(obs["observation"], episode.observations["observation"][0])
+    finally:
+        env.close()
+    with pytest.raises(InvalidInputError, match="fixed_legs"):
+        collect("hoap_actions/PegInsert-v0", "scripted", 1, 0, "hoap_actions/PegInsert/bad-v0", robot="wheels")
