@@ -8,8 +8,9 @@ mean episode wall time, reasons for failure; for the PHMM policy also the percep
 centre error of the target peg and hole) and each synthesised path's largest deviation from the
 executed hand path.
 
-Held-out layouts for the two robot models (``--robot full`` / ``fixed_legs``), declared before
-the first run of either on them: seeds 60000-60199, each robot run once.
+Held-out layouts for the two robot models (``--robot full`` / ``fixed_legs``), each declared in
+``results/NOTES.md`` before its run and used once: 60000-60199 for both robots; 62000-62199 and then
+63000-63199 for the two later versions of the welded-legs robot.
 
     python benchmarks/policy_comparison.py [--seeds 30000 30200] [--workers 2] [--models DIR] [--robot fixed_legs]
 

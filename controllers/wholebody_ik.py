@@ -78,8 +78,7 @@ HELD = ("l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow", "l_w
 POSTURE_RATE = 0.5  # rad/s at which the posture target moves from the reset posture to the rest posture
 COM_RATE = 0.02  # m/s at which the CoM target moves to the polygon's centre and the margin grows
 TILT_RATE = 0.5  # rad/s at which the hand's tilt target goes from its reset tilt to level
-LEGS = LEG_JOINTS
-BODY = (*LEGS, "waist_pitch")
+BODY = (*LEG_JOINTS, "waist_pitch")
 """The joints that move the trunk: the legs and the waist."""
 LEG_DAMPING = 1.0  # per rad^2 of a leg joint's step: damps the QP's knee cycle (a hand error costs 1e4 per m^2)
 BODY_SPEED = 0.3  # rad/s, IK velocity limit of the legs and the waist
@@ -197,11 +196,11 @@ class WholeBodyIK:
             solver.mask_dof(name)
         if self.fixed_legs:  # nothing to balance: the legs and the pelvis leave the problem
             solver.mask_fbase(True)
-            for name in LEGS:
+            for name in LEG_JOINTS:
                 solver.mask_dof(name)
         else:
             leg_damping_task = solver.add_regularization_task(0.0)  # per-joint weights replace the 0 default
-            for name in LEGS:
+            for name in LEG_JOINTS:
                 leg_damping_task.set_joint_weight(name, float(leg_damping))
             self._feet = []
             for frame in FEET:
@@ -269,12 +268,12 @@ class WholeBodyIK:
         # Posture, CoM and margin start where the robot is and move to their goals at bounded rates
         # (see _settle): jumping to them at once would swing the body at full joint speed.
         self._posture_target = q.copy()
-        self._hand.target_world = robot.get_T_world_frame(HAND)[:3, 3]
+        T_hand = robot.get_T_world_frame(HAND)
+        self._hand.target_world = T_hand[:3, 3].copy()
         if self.fixed_legs:
             self._com_target, self._com_goal, self._margin = np.zeros(2), np.zeros(2), self.com_margin
         else:
             self._reset_balance()
-        T_hand = robot.get_T_world_frame(HAND)
         self._tilt_rotvec = Rotation.from_matrix(_heading(T_hand).T @ T_hand[:3, :3]).as_rotvec()
         self._tilt_rotation = _rodrigues(self._tilt_rotvec)
         self._settled = False

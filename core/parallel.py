@@ -33,9 +33,10 @@ def ordered_map(
     """``function(job)`` for every job, yielded in job order, on ``workers`` spawned processes or,
     with ``ray_address``, on Ray actors (:data:`LOCAL_RAY` for a Ray instance on this machine, or a
     cluster address such as ``"auto"`` or ``"ray://head:10001"``; ``workers`` actors, or one per CPU
-    of the cluster when ``workers`` is 1, at most one per CPU). Each process or actor first runs ``initializer(*initargs)``,
-    which sets up what ``function`` uses (an env, a scene); both must be importable module-level
-    functions. Processes are spawned, not forked: PyBullet and placo do not survive a fork."""
+    of the cluster when ``workers`` is 1, never more than its CPUs). Each process or actor first runs
+    ``initializer(*initargs)``, which sets up what ``function`` uses (an env, a scene); both must be
+    importable module-level functions. Processes are spawned, not forked: PyBullet and placo do not
+    survive a fork."""
     if ray_address is not None:
         return _ray_map(function, jobs, initializer, initargs, workers, ray_address)
     return _process_map(function, jobs, initializer, initargs, workers)
@@ -74,8 +75,12 @@ def _ray_map(function, jobs, initializer, initargs, workers, address) -> Iterato
         raise InvalidInputError("Ray is not installed; pip install 'hoap-actions[ray]' (or leave --ray out)") from None
     started = not ray.is_initialized()
     if started:
-        ray.init(address=None if address == LOCAL_RAY else address, include_dashboard=False, log_to_driver=False,
-                 configure_logging=False)
+        try:
+            ray.init(address=None if address == LOCAL_RAY else address, include_dashboard=False, log_to_driver=False,
+                     configure_logging=False)
+        except Exception as exc:  # Ray raises ConnectionError, ValueError or RuntimeError for a bad address
+            raise InvalidInputError(f"could not start or join Ray at {address!r} ({type(exc).__name__}: {exc}); "
+                                    f"give {LOCAL_RAY!r} for this machine or the address of a running cluster") from None
     actors = []
     try:
         cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))

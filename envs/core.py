@@ -81,8 +81,8 @@ class HoapEnv(gymnasium.Env):
       - ``"achieved_goal"`` / ``"desired_goal"``: the task's goal vectors (m), as in goal-based envs.
 
     Robot (``robot``): ``"full"``, the free-standing humanoid (default), or ``"fixed_legs"``, the same
-    robot bolted at the pelvis with its legs welded in the standing posture: it cannot fall, and a
-    step costs about a fifth of the physics. Observations have the same layout for both.
+    robot bolted at the pelvis with its legs welded in the standing posture: it cannot fall, and it
+    simulates 3.7x faster (joint_delta; 2.9x in ee_delta). Observations have the same layout for both.
 
     Actions: a Box in [-1, 1] (see the control mode); values outside it are clipped to it, as
     Gymnasium's bounded Box actions are, and ``info["action_clipped"]`` says so on that step.

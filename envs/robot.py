@@ -3,8 +3,8 @@
 :class:`Robot` loads the model, stands it on the floor, and drives its joints by position control with
 the HOAP-3 torque limits and joint speeds clamped at the URDF's velocity limits (5 rad/s). Two models
 (:data:`ROBOT_MODELS`): ``"full"``, free-standing on 28 motorised joints, and ``"fixed_legs"``, the same
-robot bolted at the pelvis with its legs welded in the standing posture (16 motors, a fifth of the
-physics cost). Joint vectors are ``(28,)`` float arrays in :attr:`Robot.joint_names` order (radians)
+robot bolted at the pelvis with its legs welded in the standing posture (16 motors; a PegInsert
+physics step costs a quarter as much, with the env's 10 solver iterations for it). Joint vectors are ``(28,)`` float arrays in :attr:`Robot.joint_names` order (radians)
 for both, so observations and policies do not depend on the model; quaternions are ``(x, y, z, w)``.
 """
 
@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.envs import world
 from hoap_actions.envs.sim import Sim
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS
+from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS, standing_leg_angle
 
 ROBOT_MODELS = {"full": "hoap3.urdf", "fixed_legs": "hoap3_fixed_legs.urdf"}
 """Robot model name -> URDF: the free-standing humanoid, or the one whose legs are welded to a fixed pelvis."""
@@ -91,6 +91,10 @@ class Robot:
                 raise InvalidInputError(f"{label}={gain} is outside [0, 1], the range of PyBullet's position gains")
         if model not in ROBOT_MODELS:
             raise InvalidInputError(f"robot model {model!r} is not known; accepted: {list(ROBOT_MODELS)}")
+        placement = np.array([*(feet_xy if feet_xy is not None else (0.0, 0.0)), yaw, floor_z], dtype=float)
+        if placement.shape != (4,) or not np.all(np.isfinite(placement)):
+            raise InvalidInputError(f"feet_xy={feet_xy!r}, yaw={yaw!r}, floor_z={floor_z!r}: expected finite numbers, "
+                                    "feet_xy as (x, y) in m")
         self.sim, self.name, self.model = sim, name, model
         self.fixed_legs = model == "fixed_legs"
         if feet_xy is None:
@@ -106,7 +110,7 @@ class Robot:
         """Positions in the joint vector of the joints with a motor (all 28, or 16 with welded legs)."""
         self._indices = [motors[self.joint_names[i]].index for i in self._motorised]
         self._motor_index = dict(zip(self._motorised.tolist(), self._indices))  # joint-vector position -> PyBullet joint
-        welds = {n: STANDING_LEGS.get(n[2:], 0.0) for n in self.joint_names if n not in motors}
+        welds = {n: standing_leg_angle(n) for n in self.joint_names if n not in motors}
         self.lower = np.array([motors[n].lower if n in motors else welds[n] for n in self.joint_names])
         self.upper = np.array([motors[n].upper if n in motors else welds[n] for n in self.joint_names])
         self.max_velocity = np.array([motors[n].max_velocity if n in motors else 0.0 for n in self.joint_names])

@@ -16,7 +16,8 @@ FIXED_LEGS_FEET_XY = (-0.21, 0.10)
 """m, where the robot with welded legs stands: 3 cm further back and 5 cm further left than the
 free-standing one, which reaches near and across by moving its pelvis. Bolted where the other stands,
 the right hand could not come within reach of the near edge (elbow at its bend limit) nor across to the
-far left (shoulder roll and yaw at theirs): 26 of 50 validation layouts for the scripted expert; here 46."""
+far left (shoulder roll and yaw at theirs): 26 of 50 validation layouts for the scripted expert; here 46
+(50 once the hand controller waited 1 s for this robot's IK, see ``UNREACHED_TICKS_FIXED_LEGS``)."""
 WORK_AREA_LOW = np.array([-0.05, -0.09])  # m, (x, y) corner of the area where pegs and holes lie
 WORK_AREA_HIGH = np.array([0.05, 0.09])
 

@@ -95,6 +95,7 @@ def test_legs_never_move_nor_touch_anything_and_it_never_falls(env):
     legs = [env.unwrapped.robot.joint_index(n) for n in LEG_JOINTS]
     base = env.unwrapped.parse_observation(obs)["base_position"]
     sim = env.unwrapped.sim
+    leg_links = {sim.link_index("robot", f"{p}_{link}") for p in "rl" for link in ("thigh", "shin", "foot")}
     for _ in range(120):  # random waist and arm actions (joint_delta), 4 s
         obs, _, terminated, _, info = env.step(rng.uniform(-1, 1, 7))
         fields = env.unwrapped.parse_observation(obs)
@@ -102,7 +103,6 @@ def test_legs_never_move_nor_touch_anything_and_it_never_falls(env):
         np.testing.assert_array_equal(fields["joint_positions"][legs], env.unwrapped.robot.lower[legs].astype(np.float32))
         np.testing.assert_array_equal(fields["joint_velocities"][legs], 0.0)
         np.testing.assert_allclose(fields["base_position"], base, atol=1e-9)
-        leg_links = {sim.link_index("robot", f"{p}_{link}") for p in "rl" for link in ("thigh", "shin", "foot")}
         touching = {c["link_a"] for c in sim.contacts("robot")} & leg_links
         assert not touching
         if terminated:
@@ -159,3 +159,15 @@ def test_scripted_expert_inserts_a_peg_with_welded_legs():
         env.close()
     assert any(r.success for r in results), [r.reason for r in results]
     assert not any(r.reason == "fell" for r in results)
+
+
+@pytest.mark.parametrize("placement", [{"feet_xy": (np.nan, 0.0)}, {"feet_xy": (0.0,)}, {"yaw": np.inf},
+                                       {"floor_z": float("nan")}])
+def test_a_placement_that_is_not_finite_is_refused_before_pybullet(placement):
+    sim = Sim()
+    try:
+        with pytest.raises(InvalidInputError, match="expected finite numbers"):
+            Robot(sim, model="fixed_legs", **placement)
+        assert sim.body_names == []  # refused before anything was loaded
+    finally:
+        sim.close()

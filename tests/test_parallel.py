@@ -72,3 +72,13 @@ def test_without_ray_the_error_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray now fails as if it were not installed
     with pytest.raises(InvalidInputError, match=r"hoap-actions\[ray\]"):
         list(ordered_map(_slow_square, [1], _nothing, (), 2, "local"))
+
+
+def test_a_ray_that_cannot_be_reached_is_one_clear_error(monkeypatch):
+    def unreachable(**kwargs):
+        raise ConnectionError("Could not find any running Ray instance.")
+
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", unreachable)
+    with pytest.raises(InvalidInputError, match=r"could not start or join Ray at 'auto' \(ConnectionError"):
+        list(ordered_map(_slow_square, [1], _nothing, (), 2, "auto"))

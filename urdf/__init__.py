@@ -15,6 +15,11 @@ STANDING_LEGS = {"hip_pitch": -0.2, "knee": 0.4, "ankle_pitch": -0.2}
 over the ankles, soles flat. ``hoap3_fixed_legs.urdf`` welds its legs at these angles."""
 
 
+def standing_leg_angle(joint: str) -> float:
+    """The standing posture's angle (rad) of leg joint ``joint`` (e.g. ``"r_knee"``)."""
+    return STANDING_LEGS.get(joint[2:], 0.0)
+
+
 def urdf_path(name: str) -> Path:
     """Absolute path of the packaged URDF file ``name`` (e.g. ``"hoap3.urdf"``)."""
     path = Path(str(files(__name__).joinpath(name)))

@@ -3,8 +3,9 @@
 Run ``python urdf/make_hoap3.py`` after changing a number here; the generated URDFs are committed and
 are what the package loads: ``hoap3.urdf``, the free-standing robot, and ``hoap3_fixed_legs.urdf``, the
 same robot with its 12 leg joints welded at the standing posture (:data:`STANDING_LEGS`) and no leg
-collision shapes, for a robot bolted to its stand (a fifth of the physics cost per step). Writing the model from a table keeps the left side an exact mirror of the
-right and every inertia consistent with its shape (positive-definite, triangle inequality).
+collision shapes, for a robot bolted to its stand. Writing the model from a table keeps the left side
+an exact mirror of the right and every inertia consistent with its shape (positive-definite, triangle
+inequality).
 
 Conventions: x forward, y left, z up; at zero the legs are straight, the arms point forward
 horizontally (shoulder pitch +90 deg hangs them) and the head is level. The root link is the
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS
+from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS, standing_leg_angle
 
 # ------------------------------------------------------------------ published figures (m, kg, deg)
 ARM_LINK1, ARM_LINK2, ARM_LINK3 = 0.111, 0.111, 0.171
@@ -125,7 +126,7 @@ def fixed_legs(links: list, joints: list) -> tuple[list, list]:
     leg_joint_names = set(LEG_JOINTS)
     leg_links = {jt["child"] for jt in joints if jt["name"] in leg_joint_names}
     joints = [
-        welded(jt, STANDING_LEGS.get(jt["name"][2:], 0.0)) if jt["name"] in leg_joint_names else jt for jt in joints
+        welded(jt, standing_leg_angle(jt["name"])) if jt["name"] in leg_joint_names else jt for jt in joints
     ]
     links = [
         lk | {"shapes": [s | {"collide": False} for s in lk["shapes"]], "friction": None} if lk["name"] in leg_links else lk
