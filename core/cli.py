@@ -62,6 +62,15 @@ def _seed(text: str) -> int:
     return value
 
 
+def _noise(text: str):
+    from hoap_actions.envs.mocap import parse_noise
+
+    try:
+        return parse_noise(text)
+    except InvalidInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)
@@ -165,7 +174,7 @@ def _record(args: argparse.Namespace) -> int:
     from hoap_actions.envs.recording import record
 
     path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite, workers=args.workers,
-                  ray_address=args.ray)
+                  ray_address=args.ray, noise=args.noise)
     print(f"wrote {path}")
     return 0
 
@@ -305,6 +314,11 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--workers", type=_positive_int, default=1,
                      help="processes sharing the episodes; the file is the same byte for byte (default: 1)")
     _ray_option(rec, "recordings")
+    rec.add_argument("--noise", type=_noise, default="none",
+                     help="what a motion-capture system adds: none (the default: the simulation's exact poses, what "
+                          "the shipped models learned from), mocap (0.7 mm marker and object jitter, 0.7 deg, markers "
+                          "5 mm off the joint centres, an occlusion gap every 5 s per marker), or magnitudes such as "
+                          "marker=1,object=1,angle=1,gaps=0.2,skin=5 (mm, mm, deg, gaps per marker per s, mm)")
     rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
     rec.set_defaults(func=_record)
 

@@ -46,6 +46,7 @@ from hoap_actions.envs.demo_tasks import (
     DemoTask,
 )
 from hoap_actions.envs.demonstrator import Demonstrator
+from hoap_actions.envs.mocap import MocapNoise, add_mocap_noise, parse_noise
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_file
 from hoap_actions.parallel import ordered_map
@@ -126,7 +127,7 @@ def preset_tasks(preset: str, seed: int = 0) -> list[DemoTask]:
     return PRESETS[preset](np.random.default_rng([seed, 0]))
 
 
-def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) -> Episode:
+def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int, noise: MocapNoise) -> Episode:
     truth = GroundTruth(
         labels=recording.labels,
         phase_names=PHASE_NAMES,
@@ -142,11 +143,12 @@ def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int) ->
         grid=task.grid,
         grid_index=np.array(task.grid_index),
     )
-    return Episode(H=recording.H, O=recording.O, ground_truth=truth, seed=(seed, index + 1), Q=recording.Q)
+    H, O = add_mocap_noise(recording.H, recording.O, noise, FPS, seed, index)
+    return Episode(H=H, O=O, ground_truth=truth, seed=(seed, index + 1), Q=recording.Q)
 
 
 def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True,
-           workers: int = 1, ray_address: str | None = None) -> Path:
+           workers: int = 1, ray_address: str | None = None, noise: MocapNoise | str = "none") -> Path:
     """Record every episode of ``preset`` and write them to the HDF5 file ``out`` (see
     :mod:`hoap_actions.primitives.datasets`); returns ``out``.
 
@@ -156,13 +158,18 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
     the episodes; every episode draws from its own ``(seed, index)`` generator in a freshly restored
     scene, so the file is the same byte for byte whatever their number, or with ``ray_address``
     whatever Ray actors recorded them (see :func:`hoap_actions.parallel.ordered_map`).
+
+    ``noise`` (a :class:`~hoap_actions.envs.mocap.MocapNoise`, or a name or magnitudes for
+    :func:`~hoap_actions.envs.mocap.parse_noise`) is what a motion-capture system would add; the
+    default ``"none"`` records the simulation's exact poses. Ground truth and ``Q`` stay exact.
     """
     check_seed(seed)
+    noise = noise if isinstance(noise, MocapNoise) else parse_noise(noise)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInputError(f"workers must be an int >= 1; got {workers!r}")
     tasks = preset_tasks(preset, seed)
     with claimed_file(out, overwrite, what="dataset") as partial:
-        demos = _record_tasks(preset, tasks, seed, progress, int(workers), ray_address)
+        demos = _record_tasks(preset, tasks, seed, progress, int(workers), ray_address, noise)
         write_hdf5(partial, demos)
     logger.info("recorded %d episodes (%d frames) of preset %r", len(demos), sum(e.T for e in demos), preset)
     return Path(out)
@@ -196,7 +203,7 @@ def _recordings(tasks: list[DemoTask], seed: int, workers: int, scene: DemoScene
 
 
 def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1,
-                  ray_address: str | None = None) -> Demonstrations:
+                  ray_address: str | None = None, noise: MocapNoise = MocapNoise()) -> Demonstrations:
     episodes, table_contacts, missed_grasps = [], [], []
     scene = DemoScene()  # the recorded scene's numbers, and the scene itself for a single worker
     try:
@@ -204,7 +211,7 @@ def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool,
         bar = tqdm(_recordings(tasks, seed, workers, scene, ray_address), total=len(tasks), desc=f"recording {preset}",
                    unit="episode", disable=not (progress and sys.stderr.isatty()))
         for index, (task, recording) in enumerate(zip(tasks, bar)):
-            episodes.append(_episode(task, recording, seed, index))
+            episodes.append(_episode(task, recording, seed, index, noise))
             if recording.table_contact_frames:
                 table_contacts.append(index)
             if task.action in ("move", "rotate") and not recording.grasped:
@@ -229,6 +236,7 @@ def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool,
             "missed_grasp_episodes": missed_grasps,
         },
         joint_names=RECORDED_JOINTS,
+        noise={} if noise.exact else noise.to_dict(),
     )
 
 

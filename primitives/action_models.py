@@ -391,7 +391,8 @@ class ActionModels(Estimator):
                 f"({', '.join(self.marker_names_)}); got shape {H.shape}"
             )
         if not np.all(np.isfinite(H)):
-            raise InvalidInputError("a movement's markers must be finite (no NaN or inf)")
+            raise InvalidInputError("a movement's markers must be finite (no NaN or inf); bridge occlusion gaps first "
+                                    "with hoap_actions.primitives.mocap_cleaning.fill_gaps (learn and recognize do)")
         return marker_features(H, self.fps_, self.velocity)
 
     def recognize(self, H: np.ndarray) -> SegmentRecognition:

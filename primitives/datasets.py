@@ -6,17 +6,23 @@ object trajectories with evaluation-only labels. HDF5 is self-describing (names,
 attributes), checksummed per chunk (Fletcher-32), and readable without this package (h5py, MATLAB,
 ``h5dump``).
 
-File layout (``format_version`` 2; version 1 files, written before recordings kept the demonstrator's
-joint angles, load with ``Q`` None)::
+File layout (``format_version`` 3 for a recording with measurement noise, 2 for an exact one: the
+two differ only by the ``noise`` attribute, so exact recordings stay readable by older releases;
+version 1 files, written before recordings kept the demonstrator's joint angles, load with ``Q`` None)::
 
-    /                              attrs: format = "hoap-actions-demonstrations", format_version = 2,
+    /                              attrs: format = "hoap-actions-demonstrations", format_version = 2 or 3,
                                           fps (Hz), marker_names (6 str), phase_names (str table),
                                           units = "m, rad, s", frame (str), rotation_convention (str),
                                           seed (int), scene (JSON str), generator (JSON str), episodes (int),
-                                          joint_names (J str; empty: no Q)
+                                          joint_names (J str; empty: no Q),
+                                          noise (JSON str, version 3 only: the motion-capture error
+                                          model the data carry, :class:`hoap_actions.envs.mocap.MocapNoise`;
+                                          absent: exact poses)
     /episode_00000/                attrs: seed (2 ints: the recording seed and the episode's index)
         H        (T, 6, 3) float64   marker positions (m): shoulder, elbow, wrist, index fingertip,
-                                     index knuckle, thumb tip (root attr marker_names), scene frame
+                                     index knuckle, thumb tip (root attr marker_names), scene frame;
+                                     a marker the cameras lost is NaN in all 3 coordinates (only when
+                                     the noise model has occlusion gaps)
         O        (T, 6)    float64   object pose: centre position (m) and rotation vector (rad)
         Q        (T, J)    float64   the demonstrator's joint angles (rad, root attr joint_names), when
                                      recorded: with O, all a camera needs to render the scene again
@@ -63,8 +69,12 @@ from hoap_actions.outputs import claimed_file
 logger = logging.getLogger(__name__)
 
 FORMAT = "hoap-actions-demonstrations"
-FORMAT_VERSION = 2
-_READABLE_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+EXACT_FORMAT_VERSION = 2  # what an exact recording is written as (module docstring)
+_READABLE_VERSIONS = (1, 2, 3)
+# A recording may miss markers (occlusion gaps) but not most of them: beyond this fraction of an
+# episode's marker frames, gap filling would invent the movement rather than bridge it.
+MAX_MISSING_FRACTION = 0.2
 N_MARKERS = 6
 ROTATION_CONVENTION = (
     "O[:, 3:] = scipy Rotation.as_rotvec() of the object orientation in the scene frame (rad, |angle| <= pi)"
@@ -168,6 +178,18 @@ class Demonstrations(Sequence[Episode]):
     scene: dict = field(default_factory=dict)
     generator: dict = field(default_factory=dict)
     joint_names: tuple[str, ...] = ()
+    noise: dict = field(default_factory=dict)
+    """The motion-capture error model the data carry (:meth:`MocapNoise.to_dict`); empty: exact poses."""
+
+    @property
+    def exact(self) -> bool:
+        """The poses are the simulation's own: no noise, no gaps."""
+        return not self.noise or not any(v for k, v in self.noise.items() if k != "gap_frames")
+
+    @property
+    def has_gaps(self) -> bool:
+        """Markers may be missing (NaN) in some frames."""
+        return bool(self.noise.get("gap_rate_hz", 0.0))
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -192,7 +214,7 @@ class Demonstrations(Sequence[Episode]):
 
 
 # ---------------------------------------------------------------------------------------- writing
-def _check_episode(index: int, episode: Episode, n_phases: int, n_joints: int) -> None:
+def _check_episode(index: int, episode: Episode, n_phases: int, n_joints: int, gaps: bool) -> None:
     where = f"episode {index}"
     if (episode.Q is None) != (n_joints == 0):
         raise InvalidInputError(f"{where}: Q must be given exactly when joint_names are ({n_joints} names, Q "
@@ -207,8 +229,12 @@ def _check_episode(index: int, episode: Episode, n_phases: int, n_joints: int) -
         raise InvalidInputError(f"{where}: O must have shape (T, 6) = ({len(H)}, 6); got {O.shape}")
     if labels.shape != (len(H),):
         raise InvalidInputError(f"{where}: labels must have shape (T,) = ({len(H)},); got {labels.shape}")
-    if not (np.all(np.isfinite(H)) and np.all(np.isfinite(O))):
-        raise InvalidInputError(f"{where}: H and O must be finite (no NaN or inf)")
+    if not np.all(np.isfinite(O)):
+        raise InvalidInputError(f"{where}: O must be finite (no NaN or inf)")
+    try:
+        _check_markers(where, H, gaps)
+    except DataFileError as exc:
+        raise InvalidInputError(str(exc)) from None
     if labels.min() < 0 or labels.max() >= n_phases:
         raise InvalidInputError(f"{where}: labels must index phase_names (0..{n_phases - 1})")
 
@@ -235,12 +261,12 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
     if not demos.episodes:
         raise InvalidInputError("there are no episodes to write")
     for index, episode in enumerate(demos.episodes):
-        _check_episode(index, episode, len(demos.phase_names), len(demos.joint_names))
+        _check_episode(index, episode, len(demos.phase_names), len(demos.joint_names), demos.has_gaps)
     # HDF5 locks files with flock too; the claim already holds this one exclusively
     with h5py.File(file, "w", track_order=True, locking=False) as f:
         f.attrs.update(
             format=FORMAT,
-            format_version=FORMAT_VERSION,
+            format_version=EXACT_FORMAT_VERSION if demos.exact else FORMAT_VERSION,
             fps=float(demos.fps),
             marker_names=list(demos.marker_names),
             phase_names=list(demos.phase_names),
@@ -253,6 +279,8 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
             episodes=len(demos.episodes),
             joint_names=list(demos.joint_names),
         )
+        if not demos.exact:
+            f.attrs["noise"] = json.dumps(demos.noise, sort_keys=True)
         for index, episode in enumerate(demos.episodes):
             _write_episode(f.create_group(f"episode_{index:05d}"), episode)
 
@@ -315,6 +343,8 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     if len(marker_names) != N_MARKERS:
         raise DataFileError(f"{path}: expected {N_MARKERS} marker names, found {list(marker_names)}")
     joint_names = tuple(str(j) for j in _attribute(f, "joint_names", str(path))) if version >= 2 else ()
+    noise = _noise_attribute(f, path) if version >= 3 else {}
+    gaps = bool(noise.get("gap_rate_hz", 0.0))
     names = sorted(name for name in f if name.startswith("episode_"))
     if len(names) != int(header["episodes"]):
         raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(header['episodes'])}")
@@ -322,7 +352,7 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     for name in names:
         if not isinstance(f[name], h5py.Group):
             raise DataFileError(f"{path}:{name} is an array; accepted: a group holding {', '.join(_EPISODE_ARRAYS)}")
-        episodes.append(_read_episode(f[name], f"{path}:{name}", phase_names, len(joint_names)))
+        episodes.append(_read_episode(f[name], f"{path}:{name}", phase_names, len(joint_names), gaps))
     return Demonstrations(
         episodes=tuple(episodes),
         fps=float(header["fps"]),
@@ -332,10 +362,23 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
         scene=json.loads(header["scene"]),
         generator=json.loads(header["generator"]),
         joint_names=joint_names,
+        noise=noise,
     )
 
 
-def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...], n_joints: int) -> Episode:
+def _noise_attribute(f: h5py.File, path: Path) -> dict:
+    """The ``noise`` attribute of a version-3 file, checked against the error model it must describe."""
+    from hoap_actions.envs.mocap import MocapNoise  # the model's home; envs imports this module
+
+    try:
+        return MocapNoise.from_dict(json.loads(_attribute(f, "noise", str(path)))).to_dict()
+    except (ValueError, HoapActionsError) as exc:
+        raise DataFileError(f"{path}: attribute noise is not a motion-capture error model ({exc}); accepted: the "
+                            "JSON of hoap_actions.envs.mocap.MocapNoise.to_dict()") from None
+
+
+def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...], n_joints: int,
+                  gaps: bool) -> Episode:
     """One episode with every entry checked, so an edited or damaged file fails here naming the episode
     and the entry, not later in the learning code."""
     H, O, labels = (_entry(group, name, where) for name in ("H", "O", "ground_truth/labels"))
@@ -346,7 +389,7 @@ def _read_episode(group: h5py.Group, where: str, phase_names: tuple[str, ...], n
     if labels.shape != (len(H),) or labels.dtype.kind not in "iu":
         raise DataFileError(f"{where}: labels have shape {labels.shape} and dtype {labels.dtype}, expected "
                             f"({len(H)},) integers")
-    _check_poses(where, H, O)
+    _check_poses(where, H, O, gaps)
     if labels.min() < 0 or labels.max() >= len(phase_names):
         raise DataFileError(f"{where}: labels outside the phase table 0..{len(phase_names) - 1}")
     truth_arrays = {name: _entry(group, f"ground_truth/{name}", where) for name in _TRUTH_SHAPES}
@@ -401,20 +444,44 @@ def _attribute(node: h5py.Group, name: str, where: str):
     return node.attrs[name]
 
 
-def _check_poses(where: str, H: np.ndarray, O: np.ndarray) -> None:
-    """Finite markers and object poses within :data:`MAX_COORDINATE_M`, rotation vectors of angle <= pi.
+def _check_markers(where: str, H: np.ndarray, gaps: bool) -> None:
+    """Markers finite, or (in a recording with occlusion gaps) missing as a whole marker and in at most
+    :data:`MAX_MISSING_FRACTION` of the episode's marker frames; within :data:`MAX_COORDINATE_M`."""
+    present = np.isfinite(H)
+    if gaps:
+        partial = np.flatnonzero((present.any(axis=2) & ~present.all(axis=2)).any(axis=1) | np.isinf(H).any(axis=(1, 2)))
+        if partial.size:
+            raise DataFileError(f"{where}: H frame {partial[0]} has a marker with some coordinates missing or inf; "
+                                "accepted: a missing marker is NaN in all 3 coordinates")
+        missing = 1.0 - present[..., 0].mean()
+        if missing > MAX_MISSING_FRACTION:
+            raise DataFileError(f"{where}: {missing:.0%} of the marker frames are missing; accepted: at most "
+                                f"{MAX_MISSING_FRACTION:.0%} (the gaps could not be bridged)")
+    else:
+        frames = np.flatnonzero(~present.all(axis=(1, 2)))
+        if frames.size:
+            raise DataFileError(f"{where}: H frame {frames[0]} contains NaN or inf ({frames.size} such frame(s)); "
+                                "accepted: finite values (missing markers only in a recording whose noise model "
+                                "has occlusion gaps)")
+    with np.errstate(invalid="ignore"):
+        size = np.nan_to_num(np.abs(H.reshape(len(H), -1)), nan=0.0).max(axis=1)
+    _raise_beyond(where, "H", size, MAX_COORDINATE_M, "a marker coordinate of", "m",
+                  f"coordinates within +-{MAX_COORDINATE_M:g} m of the scene origin")
+
+
+def _check_poses(where: str, H: np.ndarray, O: np.ndarray, gaps: bool = False) -> None:
+    """Markers as :func:`_check_markers` has them, finite object poses within :data:`MAX_COORDINATE_M`,
+    rotation vectors of angle <= pi.
 
     A corrupt or mis-scaled value would otherwise surface deep in discovery (scipy's rotations, linear
     algebra) without saying where it is; the error names the first bad frame.
     """
-    markers = H.reshape(len(H), -1)
-    for name, values in (("H", markers), ("O", O)):
-        frames = np.flatnonzero(~np.isfinite(values).all(axis=1))
-        if frames.size:
-            raise DataFileError(f"{where}: {name} frame {frames[0]} contains NaN or inf ({frames.size} such "
-                                "frame(s)); accepted: finite values")
+    _check_markers(where, H, gaps)
+    frames = np.flatnonzero(~np.isfinite(O).all(axis=1))
+    if frames.size:
+        raise DataFileError(f"{where}: O frame {frames[0]} contains NaN or inf ({frames.size} such "
+                            "frame(s)); accepted: finite values")
     bound = f"coordinates within +-{MAX_COORDINATE_M:g} m of the scene origin"
-    _raise_beyond(where, "H", np.abs(markers).max(axis=1), MAX_COORDINATE_M, "a marker coordinate of", "m", bound)
     _raise_beyond(where, "O", np.abs(O[:, :3]).max(axis=1), MAX_COORDINATE_M, "an object coordinate of", "m", bound)
     with np.errstate(over="ignore"):
         angle = np.linalg.norm(O[:, 3:], axis=1)

@@ -35,6 +35,7 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_files
 from hoap_actions.primitives.base import file_params
 from hoap_actions.primitives.datasets import load_demonstrations
+from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 from hoap_actions.primitives.discovery import PrimitiveDiscovery
 from hoap_actions.primitives.discovery_evaluation import evaluate_discovery
 from hoap_actions.primitives.discovery_groups import action_groups, group_members, primitive_names
@@ -129,7 +130,7 @@ def _discover(
     demos_path: Path, out_dir: Path, staging: Path, threshold: float | None, spacing: float | None
 ) -> Summary:
     """The work of :func:`discover_to_dir`, writing every output file into ``staging``."""
-    demos = load_demonstrations(demos_path)
+    demos = clean_demonstrations(load_demonstrations(demos_path))
     if len(demos) == 0:
         raise InvalidInputError(f"{demos_path} holds no demonstrations; discovery needs at least one")
     params = {k: v for k, v in (("spacing", spacing), ("threshold", threshold)) if v is not None}

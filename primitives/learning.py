@@ -22,6 +22,7 @@ from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import Demonstrations, load_demonstrations
 from hoap_actions.primitives.discovery import PrimitiveDiscovery
+from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 
 logger = logging.getLogger(__name__)
 
@@ -51,11 +52,12 @@ class LearnSummary:
 
 
 def load_training_demonstrations(paths: Sequence[str | os.PathLike]) -> tuple[list, Demonstrations]:
-    """The episodes of every file, in order, and the first file's header; all files must share
+    """The episodes of every file, in order (cleaned as their declared noise requires,
+    :mod:`~hoap_actions.primitives.mocap_cleaning`), and the first file's header; all files must share
     markers and frame rate (the models read one kind of recording)."""
     if not paths:
         raise InvalidInputError("give at least one demonstrations file (.h5, from `hoap-actions record`)")
-    datasets = [load_demonstrations(p) for p in paths]
+    datasets = [clean_demonstrations(load_demonstrations(p)) for p in paths]
     first = datasets[0]
     for path, other in zip(paths[1:], datasets[1:]):
         if other.marker_names != first.marker_names or other.fps != first.fps:

@@ -36,6 +36,7 @@ from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import Demonstrations, Episode
 from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 
 logger = logging.getLogger(__name__)
 
@@ -138,7 +139,8 @@ def _phi_error(estimate: np.ndarray, truth: np.ndarray) -> float:
 def recognize_recording(
     models: ActionModels, demos: Demonstrations, jobs: int = 1, oracle: bool = True, progress: bool = False
 ) -> dict:
-    """Recognise every episode of ``demos`` (never seen by ``models``); the figures of the module docstring.
+    """Recognise every episode of ``demos`` (never seen by ``models``, cleaned as their declared noise
+    requires: :mod:`~hoap_actions.primitives.mocap_cleaning`); the figures of the module docstring.
 
     ``jobs`` worker processes share the episodes (the figures do not depend on it).
     """
@@ -150,6 +152,7 @@ def recognize_recording(
             f"from {list(models.marker_names_)} at {models.fps_} fps; recognise recordings of the same kind"
         )
     started = time.perf_counter()
+    demos = clean_demonstrations(demos)
     truth = models.discovery_.predict(np.concatenate([e.O for e in demos]), [e.T for e in demos])
     jobs_list = list(zip(demos, truth))
     initargs = (models, models.discovery_.hand_marker, oracle)

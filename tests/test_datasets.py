@@ -208,7 +208,7 @@ def test_not_hdf5(tmp_path):
 
 @pytest.mark.parametrize(
     "attr, value, message",
-    [("format", "something-else", "format is"), ("format_version", 3, "format_version 3 is not supported")],
+    [("format", "something-else", "format is"), ("format_version", 4, "format_version 4 is not supported")],
 )
 def test_wrong_format_or_version(written, attr, value, message):
     with h5py.File(written, "r+") as f:
@@ -257,3 +257,61 @@ def test_missing_array(written):
         del f["episode_00001/O"]
     with pytest.raises(DataFileError, match="episode_00001|corrupt"):
         load_demonstrations(written)
+
+
+NOISE = {"marker_sd_m": 0.001, "skin_offset_sd_m": 0.0, "gap_rate_hz": 0.5, "gap_frames": [3, 5],
+         "object_sd_m": 0.001, "object_sd_rad": 0.01}
+
+
+def with_gap(demos: Demonstrations) -> Demonstrations:
+    first = demos.episodes[0]
+    H = first.H.copy()
+    H[4:7, 2] = np.nan  # the wrist hidden for three frames
+    return dataclasses.replace(demos, episodes=(dataclasses.replace(first, H=H), *demos.episodes[1:]),
+                               noise=NOISE)
+
+
+def test_an_exact_recording_is_version_2_and_a_noisy_one_version_3_with_its_noise_model(tmp_path, demos):
+    exact = write_demonstrations(tmp_path / "exact.h5", demos)
+    noisy = write_demonstrations(tmp_path / "noisy.h5", with_gap(demos))
+    with h5py.File(exact) as f:
+        assert f.attrs["format_version"] == 2 and "noise" not in f.attrs
+    with h5py.File(noisy) as f:
+        assert f.attrs["format_version"] == 3 and "noise" in f.attrs
+    assert load_demonstrations(exact).exact
+    loaded = load_demonstrations(noisy)
+    assert not loaded.exact and loaded.has_gaps and loaded.noise == NOISE
+    assert np.isnan(loaded[0].H[4:7, 2]).all() and np.isfinite(loaded[0].H[7:]).all()
+
+
+def test_missing_markers_are_refused_where_the_recording_declares_no_gaps(tmp_path, demos):
+    gappy = with_gap(demos)
+    with pytest.raises(InvalidInputError, match="missing markers only in a recording whose noise model has occlusion"):
+        write_demonstrations(tmp_path / "a.h5", dataclasses.replace(gappy, noise={}))
+    path = write_demonstrations(tmp_path / "b.h5", gappy)
+    with h5py.File(path, "r+") as f:
+        del f.attrs["noise"]
+        f.attrs["format_version"] = 2
+    with pytest.raises(DataFileError, match="episode_00000: H frame 4 contains NaN"):
+        load_demonstrations(path)
+
+
+def test_a_marker_half_missing_too_many_gaps_or_a_bad_noise_model_are_named(tmp_path, demos):
+    path = write_demonstrations(tmp_path / "c.h5", with_gap(demos))
+    with h5py.File(path, "r+") as f:
+        H = f["episode_00001/H"][()]
+        H[3, 1, 0] = np.nan  # one coordinate of the elbow
+        _replace(path, "episode_00001/H", H)
+    with pytest.raises(DataFileError, match="episode_00001: H frame 3 has a marker with some coordinates missing"):
+        load_demonstrations(path)
+    path = write_demonstrations(tmp_path / "d.h5", with_gap(demos))
+    H = load_demonstrations(path)[2].H
+    H[:, :2] = np.nan  # shoulder and elbow never seen: a third of the marker frames
+    _replace(path, "episode_00002/H", H)
+    with pytest.raises(DataFileError, match="episode_00002: 33% of the marker frames are missing; accepted: at most 20%"):
+        load_demonstrations(path)
+    path = write_demonstrations(tmp_path / "e.h5", with_gap(demos))
+    with h5py.File(path, "r+") as f:
+        f.attrs["noise"] = '{"marker_sd_m": -1}'
+    with pytest.raises(DataFileError, match="attribute noise is not a motion-capture error model"):
+        load_demonstrations(path)
