@@ -49,6 +49,14 @@ Choices the paper leaves open, made here and why:
 * **One-to-one merging.** Among the state pairs below the threshold, each new state merges with at
   most one joint state and vice versa (a linear assignment that merges as many pairs as possible,
   then the closest), so a chain keeps its temporal resolution.
+* **Order** (``merging``). The paper's fold (``"fold"``, the default) depends on the order of the
+  demonstrations: shuffling a ``paper`` recording gave 11 to 13 action groups. ``"agglomerative"``
+  (:mod:`~hoap_actions.primitives.state_clustering`) merges the pieces of all demonstrations at
+  once, closest pair first, and numbers everything in a canonical order (:func:`canonical_order`),
+  so its result does not depend on the order. A lift starts every carry whatever its direction,
+  and in relative coordinates the lifts of different directions are a few millimetres apart; so
+  pieces of two motions that head more than 60 degrees apart (:data:`HEADING_COS`) never share a
+  state, as they would not in the paper's absolute object coordinates.
 * **Approach and remove.** Leading and trailing runs of rest states in the decoded strings are the
   approach and remove primitives. Their effect in O is nil, so relative to where the object rests
   all of them are the same primitive, whatever the object's location (the paper's Fig. 7 has one
@@ -57,6 +65,7 @@ Choices the paper leaves open, made here and why:
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import math
 from collections.abc import Sequence
@@ -76,17 +85,20 @@ from hoap_actions.primitives.gaussians import merge_gaussians, symmetric_kl_matr
 from hoap_actions.primitives.json_files import read_json_model, write_json_model
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
+from hoap_actions.primitives.state_clustering import cluster_pieces
 from hoap_actions.primitives.substrings import find_primitives
 
 logger = logging.getLogger(__name__)
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2 added the hyper-parameter merging; version 1 files are the paper's fold
 OBJECT_DIM = 6
 N_MARKERS = 6
 HAND_DIM = 3 * N_MARKERS
 DEFAULT_SPACING = 0.03  # m, tuned on the paper preset (benchmarks/discovery_sweep.py)
 DEFAULT_THRESHOLD = 3.0  # nats, ditto
 REST_FLOOR = 0.1  # fraction of the rest tolerance below which a displacement is creep, not motion
+MERGINGS = ("fold", "agglomerative")
+HEADING_COS = 0.5  # cosine: motions heading more than 60 degrees apart share no state ("agglomerative")
 DECODE_CELLS = 4_000_000  # frames x states decoded per batch: bounds the decoding's memory (~100 MB)
 APPROACH, MANIPULATION, REMOVE = "approach", "manipulation", "remove"
 UNKNOWN = -1  # the class id of frames that start no known primitive
@@ -183,6 +195,9 @@ class PrimitiveDiscovery(Estimator):
         Which of the 6 arm markers in H (3 coordinates each) is the hand location used as the effect
         of approach and remove; default 2 (the wrist in the paper's shoulder, elbow, wrist, index
         finger, knuckle, thumb order).
+    merging:
+        ``"fold"`` (the paper's recursive fold, in the order given) or ``"agglomerative"`` (all pieces
+        at once, independent of the order; module docstring).
     random_state:
         Accepted for the project's estimator contract; the procedure is deterministic and draws nothing.
 
@@ -214,7 +229,7 @@ class PrimitiveDiscovery(Estimator):
                 "primitives_", "primitive_kinds_", "segmentations_", "classes_")
     _file_kind = "PrimitiveDiscovery"
     _format_version = FORMAT_VERSION
-    _readable_versions = (FORMAT_VERSION,)
+    _readable_versions = (1, FORMAT_VERSION)
 
     def __init__(
         self,
@@ -223,6 +238,7 @@ class PrimitiveDiscovery(Estimator):
         reg_covar: float | None = None,
         rotation_radius: float = 0.05,
         hand_marker: int = 2,
+        merging: str = "fold",
         random_state: int | np.random.Generator | None = None,
     ) -> None:
         self.spacing = spacing
@@ -230,6 +246,7 @@ class PrimitiveDiscovery(Estimator):
         self.reg_covar = reg_covar
         self.rotation_radius = rotation_radius
         self.hand_marker = hand_marker
+        self.merging = merging
         self.random_state = random_state
 
     # -- parameters
@@ -253,6 +270,8 @@ class PrimitiveDiscovery(Estimator):
                 raise InvalidInputError(f"{name} must be a finite number > 0, got {value!r}")
         if not (isinstance(self.hand_marker, (int, np.integer)) and 0 <= self.hand_marker < N_MARKERS):
             raise InvalidInputError(f"hand_marker must be an int in [0, {N_MARKERS}), got {self.hand_marker!r}")
+        if self.merging not in MERGINGS:
+            raise InvalidInputError(f"merging must be one of {MERGINGS}, got {self.merging!r}")
 
     # -- fit
 
@@ -272,8 +291,16 @@ class PrimitiveDiscovery(Estimator):
         """
         self._check_hyper_parameters()
         objects, arms = _split_demonstrations(X, lengths, H)
-        relative, pieces = zip(*(self._prepare(o) for o in objects))
-        self._build_joint_hmm(relative, pieces)
+        prepared = [self._prepare(o) for o in objects]
+        order = (canonical_order(objects, [cuts for _, cuts in prepared]) if self.merging == "agglomerative"
+                 else list(range(len(objects))))
+        objects = [objects[i] for i in order]
+        arms = None if arms is None else [arms[i] for i in order]
+        relative, pieces = zip(*(prepared[i] for i in order))
+        if self.merging == "agglomerative":
+            self._cluster_joint_hmm(relative, pieces)
+        else:
+            self._build_joint_hmm(relative, pieces)
         decoded = self._decode(relative, pieces)
         self.state_sequences_ = [tuple(states) for states, _ in decoded]
 
@@ -285,7 +312,10 @@ class PrimitiveDiscovery(Estimator):
             middles.append(states[first:last])
         motion_primitives, motion_labels = find_primitives(middles)
         self._assign_primitives(decoded, lead, trail, motion_primitives, motion_labels)
-        self.classes_ = self._make_classes(objects, arms)
+        self.classes_ = self._make_classes(objects, arms, order)
+        given = np.argsort(order)  # from the order worked in back to the caller's
+        self.state_sequences_ = [self.state_sequences_[k] for k in given]
+        self.segmentations_ = [self.segmentations_[k] for k in given]
         logger.info(
             "discovered %d primitives from %d demonstrations (%d joint states)",
             len(self.primitives_),
@@ -398,14 +428,37 @@ class PrimitiveDiscovery(Estimator):
             at_rest = np.concatenate([at_rest, new_rest[fresh]])
             mass = np.pad(mass, ((0, len(fresh)), (0, len(fresh))))
             start_counts = np.pad(start_counts, (0, len(fresh)))
-            start_counts[mapping[0]] += 1.0
-            # uniform left-right chain: stay or advance with 1/2 each, the last state only stays
-            np.add.at(mass, (mapping[:-1], mapping[:-1]), 0.5)
-            np.add.at(mass, (mapping[:-1], mapping[1:]), 0.5)
-            mass[mapping[-1], mapping[-1]] += 1.0
+            _add_chain(mass, start_counts, mapping)
         self.joint_means_ = means
         self.joint_covars_ = covs
         self.joint_at_rest_ = at_rest
+        self.transmat_ = mass / mass.sum(axis=1, keepdims=True)
+        self.startprob_ = start_counts / start_counts.sum()
+
+    def _cluster_joint_hmm(self, relative: Sequence[np.ndarray], pieces: Sequence[list[tuple[int, int, bool]]]) -> None:
+        """The joint HMM from all pieces merged at once (``merging="agglomerative"``, module docstring)."""
+        reg = self.covariance_floor * np.array([1.0, 1.0, 1.0] + [self.rotation_radius**-2] * 3)
+        spans = [(rel, a, b) for rel, cuts in zip(relative, pieces) for a, b, _ in cuts]
+        means = np.array([rel[a:b].mean(axis=0) for rel, a, b in spans])
+        covs = np.array([np.cov(rel[a:b], rowvar=False, bias=True).reshape(6, 6) for rel, a, b in spans]) + np.diag(reg)
+        at_rest = np.array([r for cuts in pieces for _, _, r in cuts], dtype=bool)
+        demo = np.repeat(np.arange(len(pieces)), [len(cuts) for cuts in pieces])
+        heading = np.zeros((len(pieces), 2))
+        for k, (rel, cuts) in enumerate(zip(relative, pieces)):
+            step = rel[cuts[-1][0], :2] - rel[max(cuts[0][1] - 1, 0), :2]  # over the motion, horizontally
+            if np.linalg.norm(step) > self.spacing:
+                heading[k] = step / np.linalg.norm(step)
+        cosine = heading[demo] @ heading[demo].T
+        turning = ~heading[demo].any(axis=1)  # no clear heading: a turn, or a short motion
+        allowed = ((at_rest[:, None] == at_rest[None, :]) & (demo[:, None] != demo[None, :])
+                   & ((cosine > HEADING_COS) | turning[:, None] | turning[None, :]))
+        label, self.joint_means_, self.joint_covars_ = cluster_pieces(means, covs, allowed, self.threshold)
+        n = len(self.joint_means_)
+        self.joint_at_rest_ = np.zeros(n, dtype=bool)
+        self.joint_at_rest_[label] = at_rest
+        mass, start_counts = np.zeros((n, n)), np.zeros(n)
+        for mapping in np.split(label, np.cumsum([len(cuts) for cuts in pieces])[:-1]):
+            _add_chain(mass, start_counts, mapping)
         self.transmat_ = mass / mass.sum(axis=1, keepdims=True)
         self.startprob_ = start_counts / start_counts.sum()
 
@@ -524,8 +577,10 @@ class PrimitiveDiscovery(Estimator):
         self.primitive_kinds_ = kinds
         self.segmentations_ = segmentations
 
-    def _make_classes(self, objects: list[np.ndarray], arms: list[np.ndarray] | None) -> list[PrimitiveClass]:
-        """Step 5: the equivalence class of H segments of each primitive, with effects phi."""
+    def _make_classes(self, objects: list[np.ndarray], arms: list[np.ndarray] | None,
+                      order: Sequence[int]) -> list[PrimitiveClass]:
+        """Step 5: the equivalence class of H segments of each primitive, with effects phi; ``order[k]``
+        is the caller's index of the k-th demonstration worked in (segments name the caller's)."""
         members: list[list[Segment]] = [[] for _ in self.primitives_]
         marker = slice(3 * self.hand_marker, 3 * self.hand_marker + 3)
         for demo, segments in enumerate(self.segmentations_):
@@ -534,7 +589,8 @@ class PrimitiveDiscovery(Estimator):
                     track, source = arms[demo][:, marker], "hand"
                 else:
                     track, source = objects[demo][:, :3], "object"
-                members[pid].append(Segment(demo, start, end, _xyz(track[start]), _xyz(track[end - 1]), source))
+                members[pid].append(Segment(int(order[demo]), start, end, _xyz(track[start]), _xyz(track[end - 1]),
+                                            source))
         return [
             PrimitiveClass(pid, kind, states, tuple(segments))
             for pid, (kind, states, segments) in enumerate(zip(self.primitive_kinds_, self.primitives_, members))
@@ -640,6 +696,24 @@ class PrimitiveDiscovery(Estimator):
 
 
 # -------------------------------------------------------------------------------------- validation
+
+
+def _add_chain(mass: np.ndarray, start_counts: np.ndarray, mapping: np.ndarray) -> None:
+    """Count one demonstration's chain of joint states ``mapping``: a uniform left-right chain (stay or
+    advance with 1/2 each, the last state only stays) and its start."""
+    start_counts[mapping[0]] += 1.0
+    np.add.at(mass, (mapping[:-1], mapping[:-1]), 0.5)
+    np.add.at(mass, (mapping[:-1], mapping[1:]), 0.5)
+    mass[mapping[-1], mapping[-1]] += 1.0
+
+
+def canonical_order(objects: Sequence[np.ndarray], pieces: Sequence[list[tuple[int, int, bool]]]) -> list[int]:
+    """The order in which ``merging="agglomerative"`` numbers states and primitives, whatever order the
+    demonstrations come in: most motion pieces first, ties broken by a digest of the raw poses (so only
+    identical demonstrations tie, and their order cannot matter)."""
+    digests = [hashlib.sha256(np.ascontiguousarray(o, dtype=np.float64).tobytes()).hexdigest() for o in objects]
+    motion = [sum(not at_rest for _, _, at_rest in cuts) for cuts in pieces]
+    return sorted(range(len(objects)), key=lambda i: (-motion[i], digests[i]))
 
 
 def _xyz(point: np.ndarray) -> tuple[float, float, float]:

@@ -11,7 +11,7 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["OMEGA", "gaussian_kl", "merge_gaussians", "symmetric_kl_matrix"]
+__all__ = ["OMEGA", "gaussian_kl", "merge_gaussians", "spd_inverse", "symmetric_kl_matrix"]
 
 OMEGA = 0.5  # the paper's weight of the joint state in the merge
 
@@ -38,7 +38,7 @@ def symmetric_kl_matrix(
 
     The log-determinants cancel, leaving traces and a Mahalanobis term with the summed precisions.
     """
-    prec_a, prec_b = _spd_inverse(covs_a), _spd_inverse(covs_b)
+    prec_a, prec_b = spd_inverse(covs_a), spd_inverse(covs_b)
     n = means_a.shape[1]
     traces = np.einsum("mij,kji->km", prec_b, covs_a) + np.einsum("kij,mji->km", prec_a, covs_b)
     diff = means_a[:, None, :] - means_b[None, :, :]
@@ -56,16 +56,16 @@ def merge_gaussians(
     """
     if not 0.0 <= omega <= 1.0:
         raise InvalidInputError(f"omega must be in [0, 1], got {omega}")
-    prec0, prec1 = _spd_inverse(np.asarray(cov0, float)), _spd_inverse(np.asarray(cov1, float))
+    prec0, prec1 = spd_inverse(np.asarray(cov0, float)), spd_inverse(np.asarray(cov1, float))
     prec = omega * prec0 + (1.0 - omega) * prec1
-    cov = _spd_inverse(prec)
+    cov = spd_inverse(prec)
     weighted = omega * (prec0 @ np.asarray(mean0, float)[..., None]) + (1.0 - omega) * (
         prec1 @ np.asarray(mean1, float)[..., None]
     )
     return (cov @ weighted)[..., 0], cov
 
 
-def _spd_inverse(cov: np.ndarray) -> np.ndarray:
+def spd_inverse(cov: np.ndarray) -> np.ndarray:
     """Inverse of SPD matrices via Cholesky, symmetrised (stabler than ``inv`` for small variances)."""
     chol_inv = np.linalg.inv(np.linalg.cholesky(cov))
     return np.swapaxes(chol_inv, -1, -2) @ chol_inv

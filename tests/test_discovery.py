@@ -485,7 +485,7 @@ def test_save_load_round_trip(pushes, tmp_path):
     _, objects, _, _, model = pushes
     path = tmp_path / "discovery.json"
     model.save(path)
-    assert json.loads(path.read_text())["format_version"] == 1
+    assert json.loads(path.read_text())["format_version"] == 2
     assert json.loads(path.read_text())["params"]["reg_covar"] is None
     loaded = PrimitiveDiscovery.load(path)
     assert loaded.get_params() == model.get_params()
@@ -513,3 +513,55 @@ def test_load_rejects_bad_files(tmp_path):
     )
     with pytest.raises(DataFileError, match="corrupt"):
         PrimitiveDiscovery.load(tmp_path / "partial.json")
+
+
+# ------------------------------------------------------------------------- order-free merging
+
+
+def test_agglomerative_merging_gives_fig7_structure_whatever_the_order(pushes):
+    keys, objects, hands, _, _ = pushes
+    order = np.random.default_rng(5).permutation(len(objects))
+    fitted = [PrimitiveDiscovery(**TWO_CM, merging="agglomerative").fit(
+        *stacked([objects[i] for i in o]), np.concatenate([hands[i] for i in o])) for o in (np.arange(len(objects)), order)]
+    a, b = fitted
+    np.testing.assert_array_equal(a.joint_means_, b.joint_means_)
+    assert a.primitives_ == b.primitives_ and a.primitive_kinds_ == b.primitive_kinds_
+    for k, i in enumerate(order):  # the same segmentation of every demonstration, under the caller's index
+        assert b.segmentations_[k] == a.segmentations_[i]
+    assert {(c.primitive_id, tuple(sorted((s.demo, s.start) for s in c.segments))) for c in a.classes_} == {
+        (c.primitive_id, tuple(sorted((int(order[s.demo]), s.start) for s in c.segments))) for c in b.classes_}
+    for demo, (direction, distance) in enumerate(keys):
+        chain = manipulation_ids(a, demo)
+        assert len(chain) == DISTANCES.index(distance) + 1  # P1 / P1 P2 / P1 P2 P3, as the fold gives them
+
+
+def test_cluster_pieces_merges_closest_first_within_what_is_allowed():
+    from hoap_actions.primitives.state_clustering import cluster_pieces
+
+    means = np.array([[0.0], [0.1], [5.0], [5.2], [0.05]])
+    covs = np.ones((5, 1, 1))
+    allowed = np.ones((5, 5), dtype=bool)
+    label, merged_means, merged_covs = cluster_pieces(means, covs, allowed, threshold=1.0)
+    np.testing.assert_array_equal(label, [0, 0, 1, 1, 0])
+    np.testing.assert_allclose(merged_means[:, 0], [0.05, 5.1])  # equal-weight merges of eqs. (2)-(3)
+    np.testing.assert_allclose(merged_covs[:, 0, 0], 1.0)
+    allowed[0, 1] = allowed[1, 0] = False  # e.g. two pieces of one demonstration: never one state
+    label, _, _ = cluster_pieces(means, covs, allowed, threshold=1.0)
+    assert label[0] != label[1] and label[2] == label[3] and label[4] in (label[0], label[1])
+    permutation = np.array([3, 0, 4, 2, 1])
+    again, _, _ = cluster_pieces(means[permutation], covs, allowed[np.ix_(permutation, permutation)], threshold=1.0)
+    assert {frozenset(permutation[again == k]) for k in set(again)} == {frozenset(np.flatnonzero(label == k))
+                                                                       for k in set(label)}
+
+
+def test_a_version_1_discovery_file_is_the_papers_fold(pushes, tmp_path):
+    *_, model = pushes
+    path = tmp_path / "model.json"
+    model.save(path)
+    document = json.loads(path.read_text())
+    document["format_version"] = 1
+    del document["params"]["merging"]
+    path.write_text(json.dumps(document))
+    assert PrimitiveDiscovery.load(path).merging == "fold"
+    with pytest.raises(InvalidInputError, match="merging must be one of"):
+        PrimitiveDiscovery(merging="greedy").fit(*stacked(pushes[1][:2]))

@@ -93,9 +93,9 @@ def test_discover_to_dir_writes_versioned_loadable_results(small, tmp_path):
     assert summary.files == tuple(out / name for name in OUTPUT_FILES)
     assert all(f.is_file() and f.stat().st_size > 0 for f in summary.files)
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging left behind
-    for name in ("model.json", "classes.json", "grammar.json", "summary.json"):
+    for name, version in (("model.json", 2), ("classes.json", 1), ("grammar.json", 1), ("summary.json", 1)):
         document = json.loads((out / name).read_text())
-        assert document["format_version"] == 1 and isinstance(document["kind"], str)
+        assert document["format_version"] == version and isinstance(document["kind"], str)
     model = PrimitiveDiscovery.load(out / "model.json")
     assert model.get_params()["spacing"] == summary.spacing and len(model.primitives_) == summary.n_primitives
     grammar = ActionGrammar.load(out / "grammar.json")
