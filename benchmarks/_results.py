@@ -45,13 +45,15 @@ def use_blas_threads(threads: int) -> None:
         os.environ[variable] = str(threads)
 
 
-def ensure_recording(preset: str, seed: int, data: Path) -> Path:
-    """``data/<preset>-s<seed>.h5``, recorded first if it is not there (same preset and seed, same file)."""
-    path = Path(data) / f"{preset}-s{seed}.h5"
+def ensure_recording(preset: str, seed: int, data: Path, noise: str = "none", workers: int = 1) -> Path:
+    """``data/<preset>-s<seed>.h5`` (``-<noise>`` before the suffix for a noisy one), recorded first if it
+    is not there (same preset, seed and noise, same file)."""
+    tag = "" if noise == "none" else "-" + noise.replace("=", "").replace(",", "-")
+    path = Path(data) / f"{preset}-s{seed}{tag}.h5"
     if not path.exists():
         from hoap_actions.envs.recording import record
 
-        record(preset, path, seed=seed)
+        record(preset, path, seed=seed, noise=noise, workers=workers)
     return path
 
 

@@ -198,3 +198,41 @@ def test_single_demonstration_and_an_object_that_never_moves(tmp_path):
     assert summary.n_primitives == 1  # documented: an object that never moves is all approach
     assert summary.evaluation["frame_accuracy"]["ceiling_effect_visible"] == pytest.approx(1 / 3, abs=0.02)
     assert (tmp_path / "still" / "gaussians.png").is_file()
+
+
+def test_robustness_helpers_on_the_small_preset(small):
+    from hoap_actions.primitives.discovery_robustness import (
+        MOVING,
+        REST_AFTER,
+        REST_BEFORE,
+        kmeans_baseline_labels,
+        order_signature,
+        rest_baseline_labels,
+        structure_found,
+    )
+    from hoap_actions.primitives.evaluation import many_to_one_frame_accuracy
+
+    _, demos = small
+    X, lengths = poses(demos)
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    model = PrimitiveDiscovery(merging="agglomerative").fit(X, lengths, H)
+    report = evaluate_discovery(model, demos)
+    assert structure_found(report)
+    assert not structure_found({**report, "n_action_groups": report["n_action_groups"] + 1})
+    # the rest baseline: where the object moves is exactly the discovery's motion
+    rest = rest_baseline_labels(model, demos)
+    for labels, segments in zip(rest, model.segmentations_):
+        moving = [(a, b) for pid, a, b in segments if model.primitive_kinds_[pid] == "manipulation"]
+        if moving:  # the decoding keeps moving frames to motion states, so the two agree frame for frame
+            assert np.all(labels[moving[0][0]:moving[-1][1]] == MOVING)
+            assert np.sum(labels == MOVING) == moving[-1][1] - moving[0][0]
+        assert labels[0] == REST_BEFORE and labels[-1] in (REST_BEFORE, REST_AFTER)
+    true = [np.asarray(e.ground_truth.labels, int) for e in demos]
+    # three different manipulations: k-means on their displacements tells them apart as discovery does
+    kmeans = kmeans_baseline_labels(model, demos, k=3, seed=0)
+    assert many_to_one_frame_accuracy(kmeans, true) > many_to_one_frame_accuracy(rest, true)
+    order = np.array([2, 0, 3, 1])
+    shuffled = [demos[i] for i in order]
+    again = PrimitiveDiscovery(merging="agglomerative").fit(
+        *poses(shuffled), np.concatenate([e.H.reshape(e.T, -1) for e in shuffled]))
+    assert order_signature(again, order) == order_signature(model)
