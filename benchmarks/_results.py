@@ -45,15 +45,17 @@ def use_blas_threads(threads: int) -> None:
         os.environ[variable] = str(threads)
 
 
-def ensure_recording(preset: str, seed: int, data: Path, noise: str = "none", workers: int = 1) -> Path:
-    """``data/<preset>-s<seed>.h5`` (``-<noise>`` before the suffix for a noisy one), recorded first if it
-    is not there (same preset, seed and noise, same file)."""
-    tag = "" if noise == "none" else "-" + noise.replace("=", "").replace(",", "-")
+def ensure_recording(preset: str, seed: int, data: Path, noise: str = "none", workers: int = 1,
+                     demonstrator: str = "reference") -> Path:
+    """``data/<preset>-s<seed>.h5`` (with ``-<demonstrator>`` and ``-<noise>`` before the suffix for another
+    demonstrator or a noisy one), recorded first if it is not there (same arguments, same file)."""
+    tag = "" if demonstrator == "reference" else f"-{demonstrator}"
+    tag += "" if noise == "none" else "-" + noise.replace("=", "").replace(",", "-")
     path = Path(data) / f"{preset}-s{seed}{tag}.h5"
     if not path.exists():
         from hoap_actions.envs.recording import record
 
-        record(preset, path, seed=seed, noise=noise, workers=workers)
+        record(preset, path, seed=seed, noise=noise, workers=workers, demonstrator=demonstrator)
     return path
 
 

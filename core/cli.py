@@ -174,7 +174,7 @@ def _record(args: argparse.Namespace) -> int:
     from hoap_actions.envs.recording import record
 
     path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite, workers=args.workers,
-                  ray_address=args.ray, noise=args.noise)
+                  ray_address=args.ray, noise=args.noise, demonstrator=args.demonstrator)
     print(f"wrote {path}")
     return 0
 
@@ -319,6 +319,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "the shipped models learned from), mocap (0.7 mm marker and object jitter, 0.7 deg, markers "
                           "5 mm off the joint centres, an occlusion gap every 5 s per marker), or magnitudes such as "
                           "marker=1,object=1,angle=1,gaps=0.2,skin=5 (mm, mm, deg, gaps per marker per s, mm)")
+    rec.add_argument("--demonstrator", default="reference", choices=["reference", "short", "tall", "relaxed", "random"],
+                     help="who demonstrates: reference (the default: the 1.75 m demonstrator the shipped models learned "
+                          "from), short (1.60 m, leans in, elbow tucked), tall (1.88 m, brisk, elbow out), relaxed (slow, "
+                          "more trunk), or random (body and way of moving drawn from --seed)")
     rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
     rec.set_defaults(func=_record)
 

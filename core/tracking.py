@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hoap_actions.envs.demonstrators import REFERENCE_HEIGHT_M
 from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DemoScene
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
@@ -98,7 +99,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
                                 f"{list(models.marker_names_)}")
     ep = demos[episode]
-    scene = DemoScene()
+    scene = DemoScene(body_height_m=demos.generator.get("demonstrator", {}).get("height_m", REFERENCE_HEIGHT_M))
     noise = np.random.default_rng([seed, episode])
     try:
         if clutter:

@@ -7,6 +7,8 @@ posture regularisation with a stiffer trunk, joint limits narrowed away from sin
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import placo
 from scipy.spatial.transform import Rotation
@@ -64,9 +66,11 @@ class ArmIK:
     pose: called once per frame along a smooth path it tracks the path.
     """
 
-    def __init__(self, base_position: np.ndarray) -> None:
+    def __init__(self, base_position: np.ndarray, urdf: Path | None = None, trunk_use: float = 1.0) -> None:
+        """``urdf``: the demonstrator's body (default the packaged reference); ``trunk_use`` divides the
+        trunk's posture weight (more leaning and twisting above 1)."""
         self.base = np.asarray(base_position, float)
-        self.robot = placo.RobotWrapper(str(urdf_path("human_arm.urdf")), placo.Flags.ignore_collisions)
+        self.robot = placo.RobotWrapper(str(urdf or urdf_path("human_arm.urdf")), placo.Flags.ignore_collisions)
         for name, (low, high) in IK_RANGES.items():
             self.robot.set_joint_limits(name, low, high)
         solver = placo.KinematicsSolver(self.robot)
@@ -77,7 +81,7 @@ class ArmIK:
         solver.dt = 1.0 / (FPS * IK_ITERATIONS)
         self.waist_task = solver.add_joints_task()
         self.waist_task.set_joints({name: 0.0 for name in BODY_JOINTS[:3]})
-        self.waist_task.configure("waist", "soft", WAIST_WEIGHT)
+        self.waist_task.configure("waist", "soft", WAIST_WEIGHT / trunk_use)
         self.arm_task = solver.add_joints_task()
         self.arm_task.configure("arm", "soft", ARM_WEIGHT)
         solver.add_regularization_task(REGULARISATION)
@@ -85,6 +89,10 @@ class ArmIK:
         self.orientation = {site: solver.add_orientation_task(site, np.eye(3)) for site in SITE_OFFSETS}
         self.solver = solver
         self._site = ""
+
+    def set_trunk_target(self, posture: dict[str, float]) -> None:
+        """Where the trunk's posture task pulls (lumbar joint name -> rad; missing ones 0)."""
+        self.waist_task.set_joints({name: float(posture.get(name, 0.0)) for name in BODY_JOINTS[:3]})
 
     def reset(self, posture: dict[str, float]) -> None:
         """Put the model in ``posture`` (joint name -> rad; missing joints 0)."""

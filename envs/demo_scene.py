@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hoap_actions.envs.demonstrators import REFERENCE_HEIGHT_M, human_urdf
 from hoap_actions.envs.sim import Camera, CameraImage, Sim
 from hoap_actions.envs.world import HUMAN_ACTIVE_REGION_SIZE, HUMAN_TO_ROBOT_OFFSET, HUMAN_TO_ROBOT_SCALE
 from hoap_actions.errors import InvalidInputError
@@ -55,15 +56,17 @@ class DemoSceneConfig:
 
 class DemoScene:
     """A PyBullet world (one :class:`Sim`) holding the table, the block (``"object"``) and the
-    demonstrator (``"human"``, fixed pelvis). :meth:`reset` returns to the state saved after loading, so
-    each episode starts identically whatever ran before."""
+    demonstrator (``"human"``, fixed pelvis, ``body_height_m`` tall: :mod:`~hoap_actions.envs.demonstrators`).
+    :meth:`reset` returns to the state saved after loading, so each episode starts identically whatever
+    ran before."""
 
-    def __init__(self, config: DemoSceneConfig | None = None) -> None:
+    def __init__(self, config: DemoSceneConfig | None = None, body_height_m: float = REFERENCE_HEIGHT_M) -> None:
         self.config = config or DemoSceneConfig()
+        self.body_height_m = body_height_m
         self.sim = Sim(timestep=self.config.timestep)
         sim = self.sim
         sim.load_urdf("table", "demo_table.urdf", fixed_base=True)
-        sim.load_urdf("human", "human_arm.urdf", position=self.config.demonstrator_position, fixed_base=True)
+        sim.load_urdf("human", human_urdf(body_height_m), position=self.config.demonstrator_position, fixed_base=True)
         half = self.config.object_size / 2.0
         sim.load_urdf("object", "demo_object.urdf", position=(0.0, 0.0, half))
         sim.set_dynamics("table", -1, lateralFriction=self.config.table_friction)

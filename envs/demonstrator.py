@@ -76,6 +76,7 @@ from hoap_actions.envs.arm_ik import (
 )
 from hoap_actions.envs.demo_scene import HAND_LINKS, DemoScene
 from hoap_actions.envs.demo_tasks import DIRECTIONS, FPS, PHASE_NAMES, TURNS, DemoRecording, DemoTask
+from hoap_actions.envs.demonstrators import DEMONSTRATORS, DemonstratorProfile, human_urdf
 from hoap_actions.envs.minimum_jerk import bezier_length, minimum_jerk, minimum_jerk_curve
 from hoap_actions.errors import InvalidInputError
 
@@ -189,11 +190,17 @@ class _Tape:
 class Demonstrator:
     """Performs :class:`DemoTask` episodes in a :class:`DemoScene` and records them at :data:`FPS`."""
 
-    def __init__(self, scene: DemoScene) -> None:
+    def __init__(self, scene: DemoScene, profile: DemonstratorProfile = DEMONSTRATORS["reference"]) -> None:
+        """``profile``: who demonstrates (:mod:`~hoap_actions.envs.demonstrators`); its body must be the
+        one ``scene`` holds."""
+        if profile.height_m != scene.body_height_m:
+            raise InvalidInputError(f"the demonstrator {profile.name!r} is {profile.height_m} m tall but the scene holds a "
+                                    f"{scene.body_height_m} m body: make the scene with DemoScene(body_height_m=...)")
+        self.profile = profile
         self.scene = scene
         self.sim = scene.sim
         sim = self.sim
-        self.ik = ArmIK(np.array(scene.config.demonstrator_position))
+        self.ik = ArmIK(np.array(scene.config.demonstrator_position), human_urdf(profile.height_m), profile.trunk_use)
         joints = {info.name: info for info in sim.joints("human")}
         names = RECORDED_JOINTS
         self._joint_indices = [joints[name].index for name in names]
@@ -206,7 +213,10 @@ class Demonstrator:
             raise InvalidInputError(f"the physics timestep {sim.timestep} s must divide the frame period 1/{FPS} s")
         self._table_edge = float(sim.aabb("table")[0][0])
         self._rest = np.array([REST_POSTURE[name] for name in BODY_JOINTS])
-        self._work_arm = np.array([WORK_POSTURE[name] for name in BODY_JOINTS[3:]])
+        self._work_posture = WORK_POSTURE | {
+            "r_shoulder_abduction": WORK_POSTURE["r_shoulder_abduction"] + profile.elbow_lift_rad}
+        self._work_arm = np.array([self._work_posture[name] for name in BODY_JOINTS[3:]])
+        self._profile_work_arm = self._work_arm.copy()
         self._lift_arm = np.array([LIFT_POSTURE[name] for name in BODY_JOINTS[3:]])
         self._phase_codes = {name: code for code, name in enumerate(PHASE_NAMES)}
         self.ik.reset(REST_POSTURE)
@@ -231,7 +241,8 @@ class Demonstrator:
         self._grasp, self._grasped = None, False
         self._tape = _Tape()
         self._rng = rng
-        self._speed = float(rng.uniform(*EPISODE_SPEED_RANGE))
+        self._speed = float(rng.uniform(*EPISODE_SPEED_RANGE)) / self.profile.speed
+        self._vary_proximal(rng)
         start = self.scene.object_pose()
         self._record("approach")
         away = np.zeros(3)
@@ -259,6 +270,17 @@ class Demonstrator:
             grasped=self._grasped,
             table_contact_frames=tape.table_contacts,
         )
+
+    def _vary_proximal(self, rng: np.random.Generator) -> None:
+        """This episode's trunk target and elbow height, ``profile.proximal_sd_rad`` off the profile's
+        (no draw at all when it is 0, so the reference demonstrator's episodes stay as they were)."""
+        sd = self.profile.proximal_sd_rad
+        if sd == 0.0:
+            return
+        lean, twist, elbow = rng.normal(0.0, sd, 3)
+        self.ik.set_trunk_target({"lumbar_flexion": float(lean), "lumbar_rotation": float(twist)})
+        self._work_arm = self._profile_work_arm.copy()
+        self._work_arm[BODY_JOINTS[3:].index("r_shoulder_abduction")] += float(elbow)
 
     # ------------------------------------------------------------------ phases
     def _push(self, task: DemoTask, start: np.ndarray) -> np.ndarray:
@@ -315,7 +337,7 @@ class Demonstrator:
         """How hard a static hand pose is to take from the working posture: IK residual (mm + degrees)
         plus torso use (3 per rad). Leaves the IK model wherever it got to."""
         position, rotation = pose
-        self.ik.reset(WORK_POSTURE)
+        self.ik.reset(self._work_posture)
         for _ in range(40):
             q = self.ik.solve(site, position, rotation, ORIENTATION_WEIGHT, self._work_arm, ARM_WEIGHT, FINGERS_PUSH)
         reached, turned = self.ik.site_pose(site)

@@ -46,6 +46,7 @@ from hoap_actions.envs.demo_tasks import (
     DemoTask,
 )
 from hoap_actions.envs.demonstrator import Demonstrator
+from hoap_actions.envs.demonstrators import DEMONSTRATORS, DemonstratorProfile, demonstrator_profile
 from hoap_actions.envs.mocap import MocapNoise, add_mocap_noise, parse_noise
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_file
@@ -148,7 +149,8 @@ def _episode(task: DemoTask, recording: DemoRecording, seed: int, index: int, no
 
 
 def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progress: bool = True,
-           workers: int = 1, ray_address: str | None = None, noise: MocapNoise | str = "none") -> Path:
+           workers: int = 1, ray_address: str | None = None, noise: MocapNoise | str = "none",
+           demonstrator: DemonstratorProfile | str = "reference") -> Path:
     """Record every episode of ``preset`` and write them to the HDF5 file ``out`` (see
     :mod:`hoap_actions.primitives.datasets`); returns ``out``.
 
@@ -162,14 +164,18 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
     ``noise`` (a :class:`~hoap_actions.envs.mocap.MocapNoise`, or a name or magnitudes for
     :func:`~hoap_actions.envs.mocap.parse_noise`) is what a motion-capture system would add; the
     default ``"none"`` records the simulation's exact poses. Ground truth and ``Q`` stay exact.
+    ``demonstrator`` (a profile, a name of :data:`~hoap_actions.envs.demonstrators.DEMONSTRATORS`, or
+    ``"random"``: drawn from ``seed``) is who performs the episodes; the default ``"reference"`` is the
+    demonstrator the shipped models learned from.
     """
     check_seed(seed)
     noise = noise if isinstance(noise, MocapNoise) else parse_noise(noise)
+    profile = demonstrator_profile(demonstrator, seed)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInputError(f"workers must be an int >= 1; got {workers!r}")
     tasks = preset_tasks(preset, seed)
     with claimed_file(out, overwrite, what="dataset") as partial:
-        demos = _record_tasks(preset, tasks, seed, progress, int(workers), ray_address, noise)
+        demos = _record_tasks(preset, tasks, seed, progress, int(workers), ray_address, noise, profile)
         write_hdf5(partial, demos)
     logger.info("recorded %d episodes (%d frames) of preset %r", len(demos), sum(e.T for e in demos), preset)
     return Path(out)
@@ -178,11 +184,11 @@ def record(preset: str, out: Path, seed: int = 0, overwrite: bool = False, progr
 _WORKER: dict = {}
 
 
-def _start_worker() -> None:
+def _start_worker(profile: DemonstratorProfile) -> None:
     """A worker process's own scene and demonstrator, closed when the process ends."""
-    scene = DemoScene()
+    scene = DemoScene(body_height_m=profile.height_m)
     atexit.register(scene.close)
-    _WORKER.update(demonstrator=Demonstrator(scene))
+    _WORKER.update(demonstrator=Demonstrator(scene, profile))
 
 
 def _perform(job: tuple[DemoTask, int, int]) -> DemoRecording:
@@ -191,24 +197,26 @@ def _perform(job: tuple[DemoTask, int, int]) -> DemoRecording:
 
 
 def _recordings(tasks: list[DemoTask], seed: int, workers: int, scene: DemoScene,
-                ray_address: str | None) -> Iterator[DemoRecording]:
+                ray_address: str | None, profile: DemonstratorProfile) -> Iterator[DemoRecording]:
     """Each task performed, in order: in ``scene``, or spread over ``workers`` spawned processes or Ray actors."""
     jobs = [(task, seed, index) for index, task in enumerate(tasks)]
     if workers == 1 and ray_address is None:
-        demonstrator = Demonstrator(scene)
+        demonstrator = Demonstrator(scene, profile)
         for task, _, index in jobs:
             yield demonstrator.perform(task, np.random.default_rng([seed, index + 1]))
         return
-    yield from ordered_map(_perform, jobs, _start_worker, (), workers, ray_address)
+    yield from ordered_map(_perform, jobs, _start_worker, (profile,), workers, ray_address)
 
 
 def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1,
-                  ray_address: str | None = None, noise: MocapNoise = MocapNoise()) -> Demonstrations:
+                  ray_address: str | None = None, noise: MocapNoise = MocapNoise(),
+                  profile: DemonstratorProfile = DEMONSTRATORS["reference"]) -> Demonstrations:
     episodes, table_contacts, missed_grasps = [], [], []
-    scene = DemoScene()  # the recorded scene's numbers, and the scene itself for a single worker
+    scene = DemoScene(body_height_m=profile.height_m)  # the recorded scene's numbers, and the scene for one worker
     try:
         scene_parameters = scene.parameters()
-        bar = tqdm(_recordings(tasks, seed, workers, scene, ray_address), total=len(tasks), desc=f"recording {preset}",
+        bar = tqdm(_recordings(tasks, seed, workers, scene, ray_address, profile), total=len(tasks),
+                   desc=f"recording {preset}",
                    unit="episode", disable=not (progress and sys.stderr.isatty()))
         for index, (task, recording) in enumerate(zip(tasks, bar)):
             episodes.append(_episode(task, recording, seed, index, noise))
@@ -234,6 +242,8 @@ def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool,
             # quality record: episodes in which the hand touched the table, or a grasp was not made
             "table_contact_episodes": table_contacts,
             "missed_grasp_episodes": missed_grasps,
+            # who demonstrated; absent: the reference demonstrator (recordings from before profiles existed)
+            **({} if profile == DEMONSTRATORS["reference"] else {"demonstrator": profile.to_dict()}),
         },
         joint_names=RECORDED_JOINTS,
         noise={} if noise.exact else noise.to_dict(),

@@ -25,7 +25,7 @@ from hoap_actions.primitives.datasets import N_MARKERS, Demonstrations
 from hoap_actions.primitives.parametric_hmm import ParametricHMM
 from hoap_actions.primitives.trajectory_metrics import dtw_average, warped_point_errors, warped_rms_error
 
-__all__ = ["GridData", "SynthesisMap", "fit_grid_model", "grid_data", "synthesis_map"]
+__all__ = ["GridData", "SynthesisMap", "fit_grid_model", "grid_data", "repetition_spread", "synthesis_map"]
 
 TEST_GRID = "5x7"
 TIE_M = 1e-4  # errors are compared at 0.1 mm: closer than that counts as a tie
@@ -100,6 +100,19 @@ def grid_data(demos: Demonstrations) -> GridData:
         cells.setdefault(truth.grid, {}).setdefault(tuple(int(i) for i in truth.grid_index), []).append(
             (X, episode.O[end - 1, :2]))
     return GridData.from_cells(cells, tuple(demos.marker_names))
+
+
+def repetition_spread(data: GridData) -> np.ndarray:
+    """Per marker ``(M,)`` (m), how far a repetition strays from the others: at every test location each
+    repetition against the DTW average of the other repetitions, RMS over the frames, repetitions and
+    locations. People vary more in the trunk and elbow than a tightly scripted arm does."""
+    squares = []
+    for reps in data.test.values():
+        movements = [x for x, _ in reps]
+        for k, movement in enumerate(movements):
+            others = dtw_average(movements[:k] + movements[k + 1:])
+            squares.append(warped_point_errors(movement, others) ** 2)
+    return np.sqrt(np.mean(squares, axis=0))
 
 
 def _rms(values: list[float]) -> float:
