@@ -8,7 +8,7 @@ location per fold) among the linear model and thin-plate splines with the smooth
 the chosen model and the linear one are then fitted to the whole grid and scored on the 5x7 test grid.
 Also: errors per marker, the effect of the number of states (``STATE_SWEEP``), fit and synthesis times.
 
-    python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--data DIR]
+    python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--data DIR] [--demonstrator NAME]
 
 Seeds: ``approach-grid`` seed 0 is the validation recording (every choice above was made looking at
 it); seeds 1, 2 and 3 were declared held-out before any run (``results/NOTES.md``). Recordings are
@@ -52,6 +52,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
                         help="approach-grid recordings (default: the held-out %(default)s; 0 is validation)")
     parser.add_argument("--diagnose", action="store_true", help="also measure the interpolation limit")
+    parser.add_argument("--demonstrator", default="reference",
+                        help="who demonstrates in the recordings (hoap-actions record --demonstrator; default: %(default)s)")
     return parser.parse_args(argv)
 
 
@@ -186,7 +188,7 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.primitives.grid_synthesis import grid_data
 
     started = time.perf_counter()
-    paths = [ensure_recording("approach-grid", seed, args.data) for seed in args.seeds]
+    paths = [ensure_recording("approach-grid", seed, args.data, demonstrator=args.demonstrator) for seed in args.seeds]
     per_recording, first_maps = {}, None
     for seed, path in zip(args.seeds, paths):
         print(f"approach-grid seed {seed}:", flush=True)
@@ -201,7 +203,8 @@ def main(argv: list[str] | None = None) -> dict:
                                          ("mean_cm", "max_cm", "locations_within_human_loo", "fit_s",
                                           "synthesis_ms_per_movement")}
     result = {
-        "protocol": {"seeds": args.seeds, "held_out": [s for s in args.seeds if s != 0], "n_states": N_STATES,
+        "protocol": {"seeds": args.seeds, "demonstrator": args.demonstrator,
+                     "held_out": [s for s in args.seeds if s != 0 or args.demonstrator != "reference"], "n_states": N_STATES,
                      **MODEL, "mean_model_candidates": [label(c) for c in candidates()],
                      "selection": "select_mean_model on the training grid, one location per fold",
                      "phi": "object (x, y) at the end of the approach, m"},
