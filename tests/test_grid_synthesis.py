@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.grid_synthesis import GridData, fit_grid_model, synthesis_map
+from hoap_actions.primitives.grid_synthesis import GridData, fit_grid_model, repetition_spread, synthesis_map
 
 MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
 OFFSETS = np.array([-0.003, 0.0, 0.001, 0.006])  # m, each repetition's shift across its path
@@ -58,6 +58,13 @@ def test_demonstrator_errors_have_known_values(data):
         assert data.human[key] == pytest.approx(in_sample, abs=1e-9)
         assert data.human_loo[key] == pytest.approx(left_out, abs=1e-9)
     assert data.shape == (5, 7)
+
+
+def test_repetition_spread_per_marker_is_the_left_out_shift(data):
+    """Every marker of a repetition is shifted by the same OFFSETS across the path: each marker's spread
+    is the leave-one-out figure of the whole frame."""
+    others = np.array([np.delete(OFFSETS, k).mean() for k in range(OFFSETS.size)])
+    np.testing.assert_allclose(repetition_spread(data), np.sqrt(np.mean((OFFSETS - others) ** 2)), atol=1e-9)
 
 
 class _Replay:
