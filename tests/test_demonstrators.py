@@ -90,3 +90,12 @@ def test_the_demonstrator_and_the_scene_must_hold_the_same_body():
             Demonstrator(scene, DEMONSTRATORS["tall"])
     finally:
         scene.close()
+
+
+def test_record_command_names_the_demonstrators_it_accepts(tmp_path, capsys):
+    from hoap_actions.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["record", "--preset", "small", "--out", str(tmp_path / "x.h5"), "--demonstrator", "giant"])
+    assert exit_info.value.code == 2
+    assert "invalid choice: 'giant'" in capsys.readouterr().err and not (tmp_path / "x.h5").exists()
