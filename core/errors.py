@@ -45,3 +45,7 @@ class DisplayUnavailableError(HoapActionsError, RuntimeError):
 
 class ExtrapolationWarning(UserWarning):
     """A model was asked far outside the range it was trained on; its answer is an unchecked extrapolation."""
+
+
+class UnseenDemonstratorWarning(UserWarning):
+    """A recording's demonstrator is none of those the models learned from: expect lower figures."""

@@ -165,11 +165,12 @@ class ActionModels(Estimator):
     ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
     (dict id -> :class:`ClassModel` of a whole action), ``action_lifts_`` (dict id -> the highest
     lift, m, of the object in its runs) and ``action_of_class_`` (dict class id -> the whole action
-    its pieces belong to), all empty without it.
+    its pieces belong to), all empty without it; ``demonstrators_``, the profiles of who demonstrated
+    (empty: not known).
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
-                "action_lifts_", "action_of_class_")
+                "action_lifts_", "action_of_class_", "demonstrators_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
     _readable_versions = (1, FORMAT_VERSION)
@@ -245,6 +246,7 @@ class ActionModels(Estimator):
         marker_names: Sequence[str] | None = None,
         progress: bool = False,
         O: np.ndarray | None = None,
+        demonstrators: Sequence[Mapping] = (),
     ) -> ActionModels:
         """Fit one PHMM per class of ``discovery`` and the grammar of its segmentations.
 
@@ -253,7 +255,9 @@ class ActionModels(Estimator):
         demonstrations in the same order (its segments index them). ``progress`` shows a bar over
         the class fits when stderr is a terminal. With the object poses ``O`` ``(N, 6)`` the action
         level is learned too (:mod:`~hoap_actions.primitives.actions`): one PHMM per whole action,
-        phi = the object's (or the hand's, for approach and remove) start and end.
+        phi = the object's (or the hand's, for approach and remove) start and end. ``demonstrators``:
+        who performed the demonstrations (profiles as :meth:`DemonstratorProfile.to_dict` gives them;
+        empty: not known), kept so that recognising someone else can warn.
         """
         self._check_params()
         self._chained = None  # built from the fitted classes on first use
@@ -290,6 +294,7 @@ class ActionModels(Estimator):
         self.classes_ = {int(cid): fitted[cid] for cid in sorted(fitted)}
         self.grammar_ = ActionGrammar(0.0).fit([[int(pid) for pid, *_ in seg] for seg in discovery.segmentations_])
         self.discovery_ = discovery
+        self.demonstrators_ = _unique_profiles(demonstrators)
         self.actions_, self.action_lifts_, self.action_of_class_ = (
             ({}, {}, {}) if O is None else self._fit_actions(inputs, O, lengths))
         return self
@@ -517,6 +522,7 @@ class ActionModels(Estimator):
             "fps": self.fps_,
             "marker_names": list(self.marker_names_),
             "covars_prior": None if self.covars_prior_ is None else self.covars_prior_.tolist(),
+            **({"demonstrators": list(self.demonstrators_)} if self.demonstrators_ else {}),
             "classes": [
                 {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
                  "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
@@ -561,6 +567,7 @@ class ActionModels(Estimator):
         width = (2 if models.velocity else 1) * 3 * len(models.marker_names_)
         prior = manifest["covars_prior"]
         models.covars_prior_ = None if prior is None else finite_array(manifest_path, "covars_prior", prior, (width,))
+        models.demonstrators_ = _profiles_entry(manifest_path, manifest.get("demonstrators", []))
         models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
         models.grammar_ = ActionGrammar.load(directory / "grammar.json")
         classes = {e["id"]: _entry_model(directory, e, "classes", "class", width) for e in _entries(manifest_path, manifest, "classes")}
@@ -629,6 +636,25 @@ def _entry_model(directory: Path, entry: dict, key: str, prefix: str, width: int
     if isinstance(leave, bool) or not isinstance(leave, (int, float)) or not 0.0 < leave <= 1.0:
         raise DataFileError(f"{where}: exit_probability must be a probability in (0, 1]; got {leave!r}")
     return ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis, float(leave))
+
+
+def _unique_profiles(profiles: Sequence[Mapping]) -> tuple[dict, ...]:
+    """Distinct demonstrator profiles in first-seen order, as JSON-ready dicts."""
+    unique: list[dict] = []
+    for profile in profiles:
+        if not isinstance(profile, Mapping) or "name" not in profile:
+            raise InvalidInputError(f"a demonstrator is a profile mapping with a name; got {profile!r}")
+        if dict(profile) not in unique:
+            unique.append(dict(profile))
+    return tuple(unique)
+
+
+def _profiles_entry(manifest_path: Path, value: object) -> tuple[dict, ...]:
+    """The manifest's optional ``demonstrators`` entry (absent in models learned before it existed)."""
+    try:
+        return _unique_profiles(value) if isinstance(value, list) else _unique_profiles([value])
+    except InvalidInputError as exc:
+        raise DataFileError(f"{manifest_path}: entry demonstrators: {exc}; accepted: a list of profiles") from None
 
 
 def _split(H: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:

@@ -187,6 +187,14 @@ class Demonstrations(Sequence[Episode]):
         return not self.noise or not any(v for k, v in self.noise.items() if k != "gap_frames")
 
     @property
+    def demonstrator(self) -> dict:
+        """Who demonstrated (:mod:`hoap_actions.envs.demonstrators`): the profile the recording names in
+        its ``generator``, else the reference demonstrator (recordings from before profiles existed)."""
+        from hoap_actions.envs.demonstrators import DEMONSTRATORS  # envs imports this module
+
+        return dict(self.generator.get("demonstrator", DEMONSTRATORS["reference"].to_dict()))
+
+    @property
     def has_gaps(self) -> bool:
         """Markers may be missing (NaN) in some frames."""
         return bool(self.noise.get("gap_rate_hz", 0.0))

@@ -51,10 +51,11 @@ class LearnSummary:
         )
 
 
-def load_training_demonstrations(paths: Sequence[str | os.PathLike]) -> tuple[list, Demonstrations]:
+def load_training_demonstrations(paths: Sequence[str | os.PathLike]) -> tuple[list, Demonstrations, list[dict]]:
     """The episodes of every file, in order (cleaned as their declared noise requires,
     :mod:`~hoap_actions.primitives.mocap_cleaning`), and the first file's header; all files must share
-    markers and frame rate (the models read one kind of recording)."""
+    markers and frame rate (the models read one kind of recording); and who demonstrated in each file
+    (:attr:`Demonstrations.demonstrator`)."""
     if not paths:
         raise InvalidInputError("give at least one demonstrations file (.h5, from `hoap-actions record`)")
     datasets = [clean_demonstrations(load_demonstrations(p)) for p in paths]
@@ -65,7 +66,7 @@ def load_training_demonstrations(paths: Sequence[str | os.PathLike]) -> tuple[li
                 f"{path} has markers {list(other.marker_names)} at {other.fps} fps but {paths[0]} has "
                 f"{list(first.marker_names)} at {first.fps} fps; learn from recordings of one kind"
             )
-    return [episode for d in datasets for episode in d], first
+    return [episode for d in datasets for episode in d], first, [d.demonstrator for d in datasets]
 
 
 def learn_to_dir(
@@ -95,7 +96,7 @@ def learn(
     ``discovery_dir``: a ``hoap-actions discover`` folder fitted on the same demonstrations (same
     files, same order), to skip discovery. ``params`` go to :class:`ActionModels`.
     """
-    episodes, header = load_training_demonstrations(list(demos_paths))
+    episodes, header, demonstrators = load_training_demonstrations(list(demos_paths))
     lengths = [e.T for e in episodes]
     H = np.concatenate([e.H.reshape(e.T, -1) for e in episodes])
     O = np.concatenate([e.O for e in episodes])
@@ -105,7 +106,8 @@ def learn(
     else:
         discovery = _matching_discovery(Path(discovery_dir), lengths)
     discovered = time.perf_counter()
-    models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress, O=O)
+    models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress, O=O,
+                                        demonstrators=demonstrators)
     trained = time.perf_counter()
     phmms = [m.phmm for m in models.classes_.values()]
     frames = sum(s.end - s.start for c in discovery.classes_ for s in c.segments)

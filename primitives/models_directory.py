@@ -5,7 +5,8 @@ Layout (``format_version`` 2; version 1 directories, which have no action level,
 ``params`` the hyper-parameters, ``fps``, ``marker_names``, ``covars_prior`` (D,) or null, and
 ``classes``: per class its ``id``, ``kind``, ``file``, ``effect_centre`` (6,), ``effect_basis``
 (6, r) and ``exit_probability``; and ``actions``, the whole actions of
-:mod:`~hoap_actions.primitives.actions`, the same with ``lift_m``), ``discovery.json`` (the fitted
+:mod:`~hoap_actions.primitives.actions`, the same with ``lift_m``; optionally ``demonstrators``, the
+profiles of who demonstrated, absent from models learned before it was kept), ``discovery.json`` (the fitted
 :class:`~hoap_actions.primitives.discovery.PrimitiveDiscovery`, which also cuts new object
 trajectories), ``grammar.json`` (the :class:`~hoap_actions.primitives.grammar.ActionGrammar`) and
 one ``class_<id>.npz`` (a :class:`~hoap_actions.primitives.parametric_hmm.ParametricHMM`) per class

@@ -62,12 +62,12 @@ def short_recording(tmp_path_factory):
     folder = tmp_path_factory.mktemp("demonstrators")
     reference = load_demonstrations(record("small", folder / "reference.h5", seed=1, progress=False))
     short = load_demonstrations(record("small", folder / "short.h5", seed=1, progress=False, demonstrator="short"))
-    return reference, short
+    return reference, short, folder
 
 
 def test_a_short_demonstrator_does_every_task_with_a_shorter_arm_and_is_named_in_the_file(short_recording):
-    reference, short = short_recording
-    assert "demonstrator" not in reference.generator
+    reference, short, _ = short_recording
+    assert "demonstrator" not in reference.generator and reference.demonstrator == DEMONSTRATORS["reference"].to_dict()
     assert short.generator["demonstrator"] == DEMONSTRATORS["short"].to_dict()
     assert short.generator["missed_grasp_episodes"] == [] and short.generator["table_contact_episodes"] == []
     upper_arm = [np.linalg.norm(d[0].H[:, 1] - d[0].H[:, 0], axis=1).mean() for d in (reference, short)]
@@ -99,3 +99,23 @@ def test_record_command_names_the_demonstrators_it_accepts(tmp_path, capsys):
         main(["record", "--preset", "small", "--out", str(tmp_path / "x.h5"), "--demonstrator", "giant"])
     assert exit_info.value.code == 2
     assert "invalid choice: 'giant'" in capsys.readouterr().err and not (tmp_path / "x.h5").exists()
+
+
+def test_models_know_who_they_learned_from_and_warn_about_anyone_else(short_recording, tmp_path):
+    import warnings
+
+    from hoap_actions.errors import UnseenDemonstratorWarning
+    from hoap_actions.primitives.action_models import ActionModels
+    from hoap_actions.primitives.learning import learn
+    from hoap_actions.primitives.recognition_eval import recognize_recording
+
+    reference, short, folder = short_recording
+    models, _ = learn([folder / "reference.h5"])
+    assert models.demonstrators_ == (DEMONSTRATORS["reference"].to_dict(),)
+    models.save(tmp_path / "models")
+    assert ActionModels.load(tmp_path / "models").demonstrators_ == models.demonstrators_
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnseenDemonstratorWarning)
+        recognize_recording(models, reference, oracle=False)  # the demonstrator it learned from: no warning
+    with pytest.warns(UnseenDemonstratorWarning, match="demonstrator 'short' .* none of those the models learned from"):
+        recognize_recording(models, short, oracle=False)
