@@ -160,6 +160,9 @@ class ActionModels(Estimator):
         continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
         stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
         mean_model, smoothing: how each PHMM's state means depend on phi (see :class:`ParametricHMM`).
+        speed_augmentation: time-stretch factors (in [0.5, 2]); every training movement is also fitted
+            as if performed that many times as long (resampled in time), so that the chains accept a
+            demonstrator slower or faster than those seen. ``()`` (default): none.
 
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
     ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
@@ -191,6 +194,7 @@ class ActionModels(Estimator):
         stay_weight: float = 2.0,
         mean_model: str = "linear",
         smoothing: float = 1.0,
+        speed_augmentation: tuple[float, ...] = (),
     ) -> None:
         self.covariance_type = covariance_type
         self.reg_covar = reg_covar
@@ -206,6 +210,7 @@ class ActionModels(Estimator):
         self.stay_weight = stay_weight
         self.mean_model = mean_model
         self.smoothing = smoothing
+        self.speed_augmentation = speed_augmentation
 
     def _check_params(self) -> None:
         def number(name: str, low: float, high: float = math.inf, low_open: bool = False) -> None:
@@ -233,6 +238,11 @@ class ActionModels(Estimator):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise InvalidInputError(f"{name} must be an int >= 1; got {value!r}")
+        factors = self.speed_augmentation
+        if not isinstance(factors, (tuple, list)) or not all(
+                isinstance(f, (int, float)) and not isinstance(f, bool) and 0.5 <= f <= 2.0 and f != 1.0 for f in factors):
+            raise InvalidInputError(f"speed_augmentation must be a tuple of time-stretch factors in [0.5, 2], not 1; "
+                                    f"got {factors!r}")
         if not isinstance(self.velocity, bool):
             raise InvalidInputError(f"velocity must be True or False; got {self.velocity!r}")
 
@@ -274,6 +284,8 @@ class ActionModels(Estimator):
         self.fps_ = float(fps)
         self.marker_names_ = tuple(marker_names) if marker_names is not None else tuple(f"marker_{i}" for i in range(hands[0].shape[1] // 3))
         inputs = [marker_features(h, self.fps_, self.velocity) for h in hands]
+        self._stretched = {f: [marker_features(_stretch(h, f), self.fps_, self.velocity) for h in hands]
+                           for f in self.speed_augmentation}
         pieces = [c for c in discovery.classes_ if c.kind == MANIPULATION]
         refit = self.covars_weight > 0 and bool(pieces)
         bar = tqdm(total=len(discovery.classes_) + (len(pieces) if refit else 0), desc="fitting class PHMMs",
@@ -323,19 +335,28 @@ class ActionModels(Estimator):
 
     def _fit_class(self, cls, inputs: list[np.ndarray], covars_prior: np.ndarray | None) -> ClassModel:
         movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
-        return self._fit_model(int(cls.primitive_id), str(cls.kind), movements, cls.phis, covars_prior)
+        stretched = [self._stretched[f][s.demo][round(s.start * f):round(s.end * f)]
+                     for f in self.speed_augmentation for s in cls.segments]
+        phis = np.tile(cls.phis, (1 + len(self.speed_augmentation), 1))
+        return self._fit_model(int(cls.primitive_id), str(cls.kind), movements + stretched, phis, covars_prior,
+                               n_original=len(movements))
 
     def _fit_model(self, model_id: int, kind: str, movements: list[np.ndarray], phis: np.ndarray,
-                   covars_prior: np.ndarray | None) -> ClassModel:
+                   covars_prior: np.ndarray | None, n_original: int | None = None) -> ClassModel:
         """A left-right PHMM on ``movements`` with their effects ``phis`` (n, 6), reduced to the
-        directions they vary in (module docstring)."""
+        directions they vary in (module docstring); its states are counted on the first ``n_original``
+        movements (the rest are time-stretched copies)."""
+        n_original = len(movements) if n_original is None else n_original
         centre = phis.mean(axis=0)
         _, singular, vt = np.linalg.svd(phis - centre, full_matrices=False)
         spread = singular / np.sqrt(len(phis))
-        rank = int(min(np.sum(spread > self.effect_tol), max(len(phis) - 2, 0)))
+        rank = int(min(np.sum(spread > self.effect_tol), max(n_original - 2, 0)))
         basis = vt[:rank].T
         lengths = np.array([len(m) for m in movements])
-        n_states = max(1, int(min(self.max_states, self.state_fraction * lengths.min())))
+        shortest = lengths[:n_original].min()
+        n_states = max(1, int(min(self.max_states, self.state_fraction * shortest)))
+        keep = lengths >= n_states  # a stretched copy too short for the chain is left out
+        movements, phis, lengths = [m for m, k in zip(movements, keep) if k], phis[keep], lengths[keep]
         phmm = ParametricHMM(
             n_states=n_states, covariance_type=self.covariance_type, reg_covar=self.reg_covar, n_iter=100,
             tol=1e-3, random_state=0, covars_prior=covars_prior, covars_weight=self.covars_weight,
@@ -558,7 +579,10 @@ class ActionModels(Estimator):
         manifest_path = directory / MANIFEST
         check_manifest(manifest_path, manifest)
         try:
-            models = cls(**manifest["params"])
+            params = dict(manifest["params"])
+            if isinstance(params.get("speed_augmentation"), list):  # JSON has no tuples
+                params["speed_augmentation"] = tuple(params["speed_augmentation"])
+            models = cls(**params)
             models._check_params()
         except (TypeError, InvalidInputError) as exc:
             raise DataFileError(f"{manifest_path}: entry params: {exc}; accepted: {cls._param_names()}") from None
@@ -655,6 +679,13 @@ def _profiles_entry(manifest_path: Path, value: object) -> tuple[dict, ...]:
         return _unique_profiles(value) if isinstance(value, list) else _unique_profiles([value])
     except InvalidInputError as exc:
         raise DataFileError(f"{manifest_path}: entry demonstrators: {exc}; accepted: a list of profiles") from None
+
+
+def _stretch(H: np.ndarray, factor: float) -> np.ndarray:
+    """The movement ``H`` (T, D) performed ``factor`` times as long: resampled linearly in time."""
+    n = max(2, int(round(len(H) * factor)))
+    t = np.linspace(0.0, len(H) - 1.0, n)
+    return np.stack([np.interp(t, np.arange(len(H)), column) for column in H.reshape(len(H), -1).T], axis=1)
 
 
 def _split(H: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:

@@ -357,3 +357,27 @@ def test_a_refit_does_not_keep_the_previous_fits_chained_hmm(small):
     assert models.chained() is first  # built once per fit
     models.fit(H, lengths, discovery, demos.fps)
     assert models.chained() is not first
+
+
+def test_time_stretched_copies_for_speed_augmentation():
+    from hoap_actions.primitives.action_models import _stretch
+
+    ramp = np.linspace(0.0, 1.0, 11)[:, None] * np.ones((1, 18))
+    slow = _stretch(ramp, 1.5)
+    assert slow.shape == (16, 18)  # 11 frames performed 1.5 times as long
+    np.testing.assert_allclose(slow[:, 0], np.linspace(0.0, 1.0, 16))  # the same path, more frames
+    with pytest.raises(InvalidInputError, match="speed_augmentation must be a tuple of time-stretch factors"):
+        ActionModels(speed_augmentation=(1.0,))._check_params()
+    with pytest.raises(InvalidInputError, match="speed_augmentation"):
+        ActionModels(speed_augmentation=(3.0,))._check_params()
+
+
+def test_speed_augmented_models_save_and_load(small, tmp_path):
+    demos, discovery, _, _ = small
+    H, lengths = demos.movement_data()
+    models = ActionModels(speed_augmentation=(0.8, 1.25)).fit(H, lengths, discovery, demos.fps, demos.marker_names)
+    models.save(tmp_path / "augmented")
+    loaded = ActionModels.load(tmp_path / "augmented")
+    assert loaded.get_params() == models.get_params() and loaded.speed_augmentation == (0.8, 1.25)
+    piece = pieces_of(demos, discovery, 1)[1]
+    assert loaded.recognize(piece).class_id == models.recognize(piece).class_id
