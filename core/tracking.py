@@ -8,6 +8,8 @@ and the classes discovery reads from the block's trajectory are used only to sco
 
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -22,6 +24,7 @@ from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import Demonstrations
 from hoap_actions.primitives.discovery import UNKNOWN
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 from hoap_actions.primitives.tracking.action_tracker import ActionTracker, TrackedFrame
 from hoap_actions.primitives.tracking.body_model import BodyModel
 from hoap_actions.primitives.tracking.edges import edge_image
@@ -98,7 +101,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     if tuple(demos.marker_names) != tuple(models.marker_names_):
         raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
                                 f"{list(models.marker_names_)}")
-    ep = demos[episode]
+    ep = clean_demonstrations(dataclasses.replace(demos, episodes=(demos[episode],)))[0]  # gaps bridged: the truth
     scene = DemoScene(body_height_m=demos.generator.get("demonstrator", {}).get("height_m", REFERENCE_HEIGHT_M))
     noise = np.random.default_rng([seed, episode])
     try:

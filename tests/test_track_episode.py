@@ -84,3 +84,13 @@ def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path,
     assert main(["track", "--demos", str(path), "--episode", "9"]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 2 and "episode must be in [0, 3]" in errors[1]
+
+
+def test_a_noisy_recording_with_gaps_is_tracked_against_its_bridged_markers(tmp_path):
+    import numpy as np
+
+    noisy = load_demonstrations(record("small", tmp_path / "noisy.h5", seed=0, progress=False,
+                                       noise="marker=1,gaps=2,object=1,angle=1"))
+    assert np.isnan(noisy[3].H).any()  # markers missing in some frames
+    summary = track_episode(load_default_models(), noisy, 3, particles=50, seed=0).summary()
+    assert np.isfinite(summary["rms_m_all"]) and summary["rms_m"]["shoulder"] < 0.05
