@@ -83,6 +83,7 @@ def numeric_environment(blas_threads: int | None, **versions: str) -> dict:
 
 
 def write_json(path: Path, document: dict) -> None:
-    """Write ``document`` to ``path`` (indented JSON, parent folders made)."""
+    """Write ``document`` to ``path`` (indented JSON, parent folders made) and say where."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(document, indent=2) + "\n")
+    print(f"wrote {path}")

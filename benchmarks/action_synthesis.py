@@ -49,7 +49,6 @@ def main(argv: list[str] | None = None) -> dict:
               f"{100 * entry['baseline_median_m']:.2f} cm")
     document["environment"] = numeric_environment(None)
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

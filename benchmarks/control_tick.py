@@ -118,7 +118,6 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"  reasons: {expert['reasons']}")
     document = {"tick": tick, "expert": expert, "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

@@ -77,7 +77,6 @@ def main(argv: list[str] | None = None) -> dict:
                 "same_minus_cross": difference, "goals_at_most": GOALS,
                 "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

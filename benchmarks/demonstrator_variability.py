@@ -52,7 +52,6 @@ def main(argv: list[str] | None = None) -> dict:
     document = {"benchmark": "demonstrator_variability", "seed": args.seed, "results": results,
                 "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

@@ -116,7 +116,6 @@ def main(argv: list[str] | None = None) -> dict:
         "environment": numeric_environment(blas_threads=None),
     }
     write_json(args.output, document)
-    print(f"\nwrote {args.output}")
     return document
 
 

@@ -39,14 +39,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def fit(demos, merging: str, order=None):
-    import numpy as np
+    import dataclasses
 
     from hoap_actions.primitives.discovery import PrimitiveDiscovery
 
-    episodes = [demos[i] for i in order] if order is not None else list(demos)
-    X = np.concatenate([e.O for e in episodes])
-    H = np.concatenate([e.H.reshape(e.T, -1) for e in episodes])
-    return PrimitiveDiscovery(merging=merging).fit(X, [e.T for e in episodes], H)
+    if order is not None:
+        demos = dataclasses.replace(demos, episodes=tuple(demos[i] for i in order))
+    X, lengths = demos.object_data()
+    return PrimitiveDiscovery(merging=merging).fit(X, lengths, demos.movement_data()[0])
 
 
 def recording_figures(demos, mergings: list[str]) -> dict:
@@ -129,7 +129,6 @@ def main(argv: list[str] | None = None) -> dict:
                 "goals": {"structure_found": "9 of 10", "frame_accuracy": 0.95, "distinct_results": 1},
                 "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

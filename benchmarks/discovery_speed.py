@@ -179,7 +179,6 @@ def main(argv: list[str] | None = None) -> dict:
         "environment": numeric_environment(args.threads),
     }
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> dict:
         "environment": numeric_environment(blas_threads=None),
     }
     write_json(args.output, document)
-    print(f"wrote {args.output} and {png}")
+    print(f"wrote {png}")
     return document
 
 

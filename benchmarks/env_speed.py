@@ -142,7 +142,6 @@ def main(argv: list[str] | None = None) -> dict:
     document = {"results": rows, "resets": resets, "peers": peers,
                 "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
-    print(f"wrote {args.output}")
     return document
 
 

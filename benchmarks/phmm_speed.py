@@ -124,7 +124,6 @@ def main(argv: list[str] | None = None) -> dict:
           f"({result['speedup_em_iteration']:.1f}x)")
     print(f"  goal >= {GOAL_SPEEDUP:.0f}x: {'met' if result['goal_met'] else 'NOT met'}")
     write_json(args.output, result)
-    print(f"wrote {args.output}")
     return result
 
 

@@ -225,7 +225,7 @@ def main(argv: list[str] | None = None) -> dict:
     result["figure"] = png.name
     result["environment"] = {**numeric_environment(args.threads), "runtime_s": round(time.perf_counter() - started, 1)}
     write_json(args.output, result)
-    print(f"wrote {args.output} and {png}")
+    print(f"wrote {png}")
     return result
 
 

@@ -86,7 +86,6 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"timestep_s": TIMESTEP, "steps_per_run": args.steps, "runs": args.runs, "rows": rows,
               "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, result)
-    print(f"wrote {args.output}")
     return result
 
 

@@ -61,7 +61,6 @@ def main() -> None:
                 print(f"           {path} path deviation from the executed hand: median {1000 * d['median']:.1f} mm, "
                       f"max {1000 * d['max']:.1f} mm")
     write_json(args.output, document)
-    print(f"wrote {args.output}")
 
 
 if __name__ == "__main__":

@@ -84,7 +84,6 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"streaming step, 14 DOF, moving target: {step_moving_14:8.1f} us (median)")
     print(f"retime 200-point hand path:            {path_us:8.1f} us (median; {duration:.3f} s, {samples} samples)")
     write_json(args.output, results)
-    print(f"wrote {args.output}")
     return results
 
 

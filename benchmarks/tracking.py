@@ -128,7 +128,6 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{key:>28}: mean {s['mean']:.4g} [{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]")
     result["environment"] = {**numeric_environment(None), "runtime_s": round(time.perf_counter() - started, 1)}
     write_json(args.output, result)
-    print(f"wrote {args.output}")
     return result
 
 

@@ -22,6 +22,7 @@ from typing import NoReturn
 import numpy as np
 
 from hoap_actions import ENV_IDS, __version__
+from hoap_actions.envs.demonstrators import DEMONSTRATORS
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.scene import CAMERAS
 from hoap_actions.episodes import compare_policies, film_episode, summarise
@@ -319,7 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "the shipped models learned from), mocap (0.7 mm marker and object jitter, 0.7 deg, markers "
                           "5 mm off the joint centres, an occlusion gap every 5 s per marker), or magnitudes such as "
                           "marker=1,object=1,angle=1,gaps=0.2,skin=5 (mm, mm, deg, gaps per marker per s, mm)")
-    rec.add_argument("--demonstrator", default="reference", choices=["reference", "short", "tall", "relaxed", "random"],
+    rec.add_argument("--demonstrator", default="reference", choices=[*DEMONSTRATORS, "random"],
                      help="who demonstrates: reference (the default: the 1.75 m demonstrator the shipped models learned "
                           "from), short (1.60 m, leans in, elbow tucked), tall (1.88 m, brisk, elbow out), relaxed (slow, "
                           "more trunk), or random (body and way of moving drawn from --seed)")

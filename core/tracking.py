@@ -9,14 +9,12 @@ and the classes discovery reads from the block's trajectory are used only to sco
 from __future__ import annotations
 
 import dataclasses
-
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from hoap_actions.envs.demonstrators import REFERENCE_HEIGHT_M
 from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DemoScene
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
@@ -102,7 +100,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
                                 f"{list(models.marker_names_)}")
     ep = clean_demonstrations(dataclasses.replace(demos, episodes=(demos[episode],)))[0]  # gaps bridged: the truth
-    scene = DemoScene(body_height_m=demos.generator.get("demonstrator", {}).get("height_m", REFERENCE_HEIGHT_M))
+    scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     noise = np.random.default_rng([seed, episode])
     try:
         if clutter:

@@ -160,8 +160,8 @@ class ActionModels(Estimator):
         continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
         stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
         mean_model, smoothing: how each PHMM's state means depend on phi (see :class:`ParametricHMM`).
-        speed_augmentation: time-stretch factors (in [0.5, 2]); every training movement is also fitted
-            as if performed that many times as long (resampled in time), so that the chains accept a
+        speed_augmentation: time-stretch factors (in [0.5, 2]); every class's training movement is also
+            fitted as if performed that many times as long (resampled in time), so that the chains accept a
             demonstrator slower or faster than those seen. ``()`` (default): none.
 
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
@@ -284,8 +284,8 @@ class ActionModels(Estimator):
         self.fps_ = float(fps)
         self.marker_names_ = tuple(marker_names) if marker_names is not None else tuple(f"marker_{i}" for i in range(hands[0].shape[1] // 3))
         inputs = [marker_features(h, self.fps_, self.velocity) for h in hands]
-        self._stretched = {f: [marker_features(_stretch(h, f), self.fps_, self.velocity) for h in hands]
-                           for f in self.speed_augmentation}
+        stretched = {f: [marker_features(_stretch(h, f), self.fps_, self.velocity) for h in hands]
+                     for f in self.speed_augmentation}
         pieces = [c for c in discovery.classes_ if c.kind == MANIPULATION]
         refit = self.covars_weight > 0 and bool(pieces)
         bar = tqdm(total=len(discovery.classes_) + (len(pieces) if refit else 0), desc="fitting class PHMMs",
@@ -293,7 +293,7 @@ class ActionModels(Estimator):
         with bar:
             fitted = {}
             for c in discovery.classes_:
-                fitted[c.primitive_id] = self._fit_class(c, inputs, None)
+                fitted[c.primitive_id] = self._fit_class(c, inputs, stretched, None)
                 bar.update()
             self.covars_prior_ = None
             if refit:  # the first fit's variances make the pooled prior
@@ -301,7 +301,7 @@ class ActionModels(Estimator):
                 self.covars_prior_ = _pooled_variances([fitted[c.primitive_id].phmm for c in pieces], frames,
                                                        self.reg_covar)
                 for c in pieces:
-                    fitted[c.primitive_id] = self._fit_class(c, inputs, self.covars_prior_)
+                    fitted[c.primitive_id] = self._fit_class(c, inputs, stretched, self.covars_prior_)
                     bar.update()
         self.classes_ = {int(cid): fitted[cid] for cid in sorted(fitted)}
         self.grammar_ = ActionGrammar(0.0).fit([[int(pid) for pid, *_ in seg] for seg in discovery.segmentations_])
@@ -333,12 +333,14 @@ class ActionModels(Estimator):
                                 for g in {r.group for r in runs})
         return actions, lifts, action_of_class
 
-    def _fit_class(self, cls, inputs: list[np.ndarray], covars_prior: np.ndarray | None) -> ClassModel:
+    def _fit_class(self, cls, inputs: list[np.ndarray], stretched: dict[float, list[np.ndarray]],
+                   covars_prior: np.ndarray | None) -> ClassModel:
+        """The class's PHMM from its segments of ``inputs`` and of each time-stretched copy in ``stretched``."""
         movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
-        stretched = [self._stretched[f][s.demo][round(s.start * f):round(s.end * f)]
-                     for f in self.speed_augmentation for s in cls.segments]
+        copies = [stretched[f][s.demo][round(s.start * f):round(s.end * f)]
+                  for f in self.speed_augmentation for s in cls.segments]
         phis = np.tile(cls.phis, (1 + len(self.speed_augmentation), 1))
-        return self._fit_model(int(cls.primitive_id), str(cls.kind), movements + stretched, phis, covars_prior,
+        return self._fit_model(int(cls.primitive_id), str(cls.kind), movements + copies, phis, covars_prior,
                                n_original=len(movements))
 
     def _fit_model(self, model_id: int, kind: str, movements: list[np.ndarray], phis: np.ndarray,

@@ -184,7 +184,7 @@ class Demonstrations(Sequence[Episode]):
     @property
     def exact(self) -> bool:
         """The poses are the simulation's own: no noise, no gaps."""
-        return not self.noise or not any(v for k, v in self.noise.items() if k != "gap_frames")
+        return self._noise_model().exact
 
     @property
     def demonstrator(self) -> dict:
@@ -197,7 +197,12 @@ class Demonstrations(Sequence[Episode]):
     @property
     def has_gaps(self) -> bool:
         """Markers may be missing (NaN) in some frames."""
-        return bool(self.noise.get("gap_rate_hz", 0.0))
+        return self._noise_model().has_gaps
+
+    def _noise_model(self):
+        from hoap_actions.envs.mocap import MocapNoise  # the model's home; envs imports this module
+
+        return MocapNoise.from_dict(self.noise)
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -268,8 +273,9 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
         raise InvalidInputError(f"expected {N_MARKERS} marker names; got {list(demos.marker_names)}")
     if not demos.episodes:
         raise InvalidInputError("there are no episodes to write")
+    gaps = demos.has_gaps
     for index, episode in enumerate(demos.episodes):
-        _check_episode(index, episode, len(demos.phase_names), len(demos.joint_names), demos.has_gaps)
+        _check_episode(index, episode, len(demos.phase_names), len(demos.joint_names), gaps)
     # HDF5 locks files with flock too; the claim already holds this one exclusively
     with h5py.File(file, "w", track_order=True, locking=False) as f:
         f.attrs.update(
@@ -351,8 +357,9 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     if len(marker_names) != N_MARKERS:
         raise DataFileError(f"{path}: expected {N_MARKERS} marker names, found {list(marker_names)}")
     joint_names = tuple(str(j) for j in _attribute(f, "joint_names", str(path))) if version >= 2 else ()
-    noise = _noise_attribute(f, path) if version >= 3 else {}
-    gaps = bool(noise.get("gap_rate_hz", 0.0))
+    noise_model = _noise_attribute(f, path) if version >= 3 else None
+    noise = {} if noise_model is None else noise_model.to_dict()
+    gaps = noise_model is not None and noise_model.has_gaps
     names = sorted(name for name in f if name.startswith("episode_"))
     if len(names) != int(header["episodes"]):
         raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(header['episodes'])}")
@@ -374,12 +381,12 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     )
 
 
-def _noise_attribute(f: h5py.File, path: Path) -> dict:
-    """The ``noise`` attribute of a version-3 file, checked against the error model it must describe."""
+def _noise_attribute(f: h5py.File, path: Path):
+    """The error model the ``noise`` attribute of a version-3 file describes (a ``MocapNoise``), checked."""
     from hoap_actions.envs.mocap import MocapNoise  # the model's home; envs imports this module
 
     try:
-        return MocapNoise.from_dict(json.loads(_attribute(f, "noise", str(path)))).to_dict()
+        return MocapNoise.from_dict(json.loads(_attribute(f, "noise", str(path))))
     except (ValueError, HoapActionsError) as exc:
         raise DataFileError(f"{path}: attribute noise is not a motion-capture error model ({exc}); accepted: the "
                             "JSON of hoap_actions.envs.mocap.MocapNoise.to_dict()") from None

@@ -330,16 +330,17 @@ class PrimitiveDiscovery(Estimator):
         self._check_hyper_parameters()
         return [self._prepare(o)[0] for o in _split_demonstrations(X, lengths)[0]]
 
-    def rest_bounds(self, X: np.ndarray, lengths: Sequence[int]) -> list[tuple[int, int]]:
-        """Per demonstration of raw object poses ``X`` ``(N, 6)`` and ``lengths``, where the object starts
-        to move and where it rests again, ``(first moving frame, first frame of the final rest)``, as
-        :meth:`fit` cuts them (both the length for an object that never moves)."""
+    def motion_spans(self, X: np.ndarray, lengths: Sequence[int]) -> list[tuple[np.ndarray, int, int]]:
+        """Per demonstration of raw object poses ``X`` ``(N, 6)`` and ``lengths``: its trajectory relative
+        to the initial rest (as :meth:`relative_trajectories`), the first moving frame and the first frame
+        of the final rest, as :meth:`fit` cuts them (both the length for an object that never moves)."""
         self._check_hyper_parameters()
-        bounds = []
+        spans = []
         for poses in _split_demonstrations(X, lengths)[0]:
-            cuts = self._prepare(poses)[1]
-            bounds.append((cuts[0][1], cuts[-1][0]) if len(cuts) > 1 else (len(poses), len(poses)))
-        return bounds
+            relative, cuts = self._prepare(poses)
+            moving, resting = (cuts[0][1], cuts[-1][0]) if len(cuts) > 1 else (len(poses), len(poses))
+            spans.append((relative, moving, resting))
+        return spans
 
     def _prepare(self, poses: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, bool]]]:
         """The trajectory relative to its initial rest pose, and its pieces."""

@@ -50,22 +50,17 @@ def order_signature(model: PrimitiveDiscovery, order: np.ndarray | None = None) 
 
 def rest_baseline_labels(model: PrimitiveDiscovery, demos: Demonstrations) -> list[np.ndarray]:
     """Per demonstration, each frame's label from the rest detection of ``model``'s parameters alone."""
-    X, lengths = demos.object_data()
-    labels = []
-    for T, (moving, resting) in zip(lengths, model.rest_bounds(X, lengths)):
-        labels.append(np.repeat([REST_BEFORE, MOVING, REST_AFTER], [moving, resting - moving, T - resting]))
-    return labels
+    return [np.repeat([REST_BEFORE, MOVING, REST_AFTER], [moving, resting - moving, len(rel) - resting])
+            for rel, moving, resting in model.motion_spans(*demos.object_data())]
 
 
 def kmeans_baseline_labels(model: PrimitiveDiscovery, demos: Demonstrations, k: int, seed: int = 0) -> list[np.ndarray]:
     """The rest baseline with every demonstration's motion labelled by k-means (``k`` clusters, seeded)
     on its displacement (position and ``rotation_radius`` times the rotation vector, relative to the
     rest before it)."""
-    X, lengths = demos.object_data()
-    bounds = model.rest_bounds(X, lengths)
-    relative = model.relative_trajectories(X, lengths)
+    spans = model.motion_spans(*demos.object_data())
     displacement = np.array([np.r_[rel[max(r - 1, 0), :3], model.rotation_radius * rel[max(r - 1, 0), 3:]]
-                             for rel, (_, r) in zip(relative, bounds)])
+                             for rel, _, r in spans])
     _, cluster = kmeans2(displacement, k, minit="++", seed=np.random.default_rng(seed))
-    return [np.repeat([REST_BEFORE, REST_AFTER + 1 + c, REST_AFTER], [m, r - m, T - r])
-            for T, (m, r), c in zip(lengths, bounds, cluster)]
+    return [np.repeat([REST_BEFORE, REST_AFTER + 1 + c, REST_AFTER], [m, r - m, len(rel) - r])
+            for (rel, m, r), c in zip(spans, cluster)]
