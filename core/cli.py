@@ -238,7 +238,8 @@ def _track(args: argparse.Namespace) -> int:
         models = ActionModels.load(args.models) if args.models else load_default_models()
         demos = load_demonstrations(args.demos)
         result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
-                               keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise)
+                               keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
+                               silhouette=not args.edges_only)
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
@@ -368,6 +369,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                    "with the estimated body and target")
     track.add_argument("--figure", type=_path, help="write Fig. 11 (the estimated effect over time) as a PNG")
     track.add_argument("--clutter", action="store_true", help="put unrelated objects on the table in the images")
+    track.add_argument("--edges-only", action="store_true",
+                       help="score poses on the edge image alone (the paper's eq. 8), without the silhouette that "
+                            "background subtraction against the empty table gives (the default uses both)")
     track.add_argument("--noise", type=float, default=0.0,
                        help="Gaussian image noise, standard deviation as a share of full intensity (default: 0)")
     track.add_argument("--overwrite", action="store_true", help="replace existing --json, --video, --figure files")

@@ -26,10 +26,12 @@ from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 from hoap_actions.primitives.tracking.action_tracker import ActionTracker, TrackedFrame
 from hoap_actions.primitives.tracking.body_model import BodyModel
 from hoap_actions.primitives.tracking.edges import edge_image
+from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
 
 __all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
+TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
 CONVERGED_M = 0.02  # an approach's estimated end counts as found once it stays within this of the truth
 
 
@@ -45,6 +47,7 @@ class TrackResult:
     particles: int
     track_s: float                      # wall time of edge images + filter (rendering excluded)
     torso_base: np.ndarray              # (3,) the body model's fixed trunk base (the lumbar joint)
+    silhouette: bool                    # scored with the foreground cue as well as the edges
     edges: list[np.ndarray] = field(default_factory=list)
     images: list[np.ndarray] = field(default_factory=list)
 
@@ -68,6 +71,7 @@ class TrackResult:
             "rms_m_all": float(np.sqrt(np.mean(distance**2))),
             "hz": len(self.frames) / self.track_s,
             "particles": self.particles,
+            "cues": ["edges", "silhouette"] if self.silhouette else ["edges"],
             "frames": len(self.frames),
             "phi_error_m": float(np.median(errors)) if errors else None,
             "frames_to_converge": float(np.median(found)) if found else None,
@@ -82,12 +86,14 @@ class TrackResult:
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                   seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
                   more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
-                  progress: Callable[[int, int], None] | None = None) -> TrackResult:
+                  silhouette: bool = True, progress: Callable[[int, int], None] | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
     puts unrelated objects on the table (:meth:`DemoScene.add_clutter`); ``image_noise`` adds Gaussian
-    noise of that standard deviation (share of the full intensity) to every image, drawn from ``seed``."""
+    noise of that standard deviation (share of the full intensity) to every image, drawn from ``seed``.
+    ``silhouette`` adds the foreground cue: each image against a picture of the empty table from the same
+    camera (taken once, before the episode, with its own noise); False scores edges alone (eq. 8)."""
     if not (np.isfinite(image_noise) and 0.0 <= image_noise <= 1.0):
         raise InvalidInputError(f"image_noise must be a standard deviation in [0, 1] (share of full intensity); "
                                 f"got {image_noise!r}")
@@ -105,19 +111,26 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     try:
         if clutter:
             scene.add_clutter()
-        body = BodyModel(models.marker_names_, torso_base=scene.torso_base())
+        body = BodyModel(models.marker_names_, torso_base=scene.torso_base(), hidden_below_z=TABLE_TOP_Z)
         views = (camera, *more_cameras)
         tracker = ActionTracker(models, body, views, n_particles=particles, random_state=seed)
+
+        def noisy(images: list[np.ndarray]) -> list[np.ndarray]:
+            if image_noise == 0:
+                return images
+            return [np.clip(image + noise.normal(0.0, 255.0 * image_noise, image.shape), 0, 255).astype(np.uint8)
+                    for image in images]
+
+        subtractors = [BackgroundSubtractor(empty) for empty in noisy([scene.render_background(view).rgb
+                                                                       for view in views])] if silhouette else None
         frames, kept, pictures, spent = [], [], [], 0.0
         for t in range(ep.T):
             scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
-            images = [scene.render(view).rgb for view in views]
-            if image_noise > 0:
-                images = [np.clip(image + noise.normal(0.0, 255.0 * image_noise, image.shape), 0, 255).astype(np.uint8)
-                          for image in images]
+            images = noisy([scene.render(view).rgb for view in views])
             started = time.perf_counter()
             edges = [edge_image(image) for image in images]
-            frames.append(tracker.step(edges))
+            masks = None if subtractors is None else [subtract(image) for subtract, image in zip(subtractors, images)]
+            frames.append(tracker.step(edges, masks))
             spent += time.perf_counter() - started
             if keep_images:
                 kept.append(edges[0])
@@ -132,7 +145,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     approaches = [(start, end, ep.H[end - 1, hand]) for cid, start, end in runs(truth)
                   if cid != UNKNOWN and kinds.get(cid) == "approach"]
     return TrackResult(frames, ep.H, np.asarray(truth), approaches, tuple(models.marker_names_), particles, spent,
-                       body.torso_base, kept, pictures)
+                       body.torso_base, silhouette, kept, pictures)
 
 
 def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:

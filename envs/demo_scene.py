@@ -31,6 +31,7 @@ HAND_LINKS = ("r_palm", "r_index", "r_thumb")  # the only links of the demonstra
 DEMONSTRATOR_CAMERA = Camera(eye=(0.75, -0.45, 0.55), target=(-0.30, 0.05, 0.10), fov_deg=55.0, width=320, height=240)
 """A monocular camera across the table from the demonstrator and to their right (the paper's Fig. 12
 view): the reaching arm is seen from the front-side, so the target's depth shows in the image."""
+OUT_OF_VIEW_M = np.array([0.0, 0.0, -50.0])  # where a body goes while the empty scene is pictured
 CLUTTER = (  # (name, urdf, position m, scale, colour): what else lies on a real table
     ("clutter_box", "demo_object.urdf", (0.25, -0.30, 0.05), 2.0, (0.2, 0.4, 0.9, 1.0)),
     ("clutter_block", "demo_object.urdf", (-0.30, -0.35, 0.025), 1.0, (0.95, 0.85, 0.2, 1.0)),
@@ -120,6 +121,18 @@ class DemoScene:
     def render(self, camera: Camera = DEMONSTRATOR_CAMERA) -> CameraImage:
         """What ``camera`` sees of the scene as posed."""
         return self.sim.render(camera)
+
+    def render_background(self, camera: Camera = DEMONSTRATOR_CAMERA) -> CameraImage:
+        """What ``camera`` sees of the scene without the demonstrator and the block: the picture of the empty
+        table that background subtraction compares each frame with. The bodies are put back, at rest."""
+        saved = {name: self.sim.base_pose(name) for name in ("human", "object")}
+        try:
+            for name, (position, orientation) in saved.items():
+                self.sim.set_base_pose(name, position + OUT_OF_VIEW_M, orientation)
+            return self.sim.render(camera)
+        finally:
+            for name, (position, orientation) in saved.items():
+                self.sim.set_base_pose(name, position, orientation)
 
     def object_pose(self) -> np.ndarray:
         """The block's pose (6,): centre position (m) and rotation vector (rad, scipy ``as_rotvec``)."""

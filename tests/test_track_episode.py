@@ -30,7 +30,7 @@ def test_tracks_an_episode_from_rendered_frames(small):
     # the shoulder hardly moves and the torso is big in the image: it is found within a few cm
     assert summary["rms_m"]["shoulder"] < 0.05
     assert 0.0 < summary["rms_m_all"] < 0.5 and summary["hz"] > 0
-    assert summary["approaches"] == 1
+    assert summary["approaches"] == 1 and summary["cues"] == ["edges", "silhouette"]
     again = track_episode(models, small, episode, particles=100, seed=0).summary()
     assert again["rms_m_all"] == summary["rms_m_all"] and again["recognized"] == summary["recognized"]
 
@@ -80,6 +80,11 @@ def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path,
             "truth"} <= set(report)
     assert report["particles"] == 50 and len(report["recognized"]) == report["frames"] == small[3].T
     assert (tmp_path / "fig11.png").stat().st_size > 0
+    assert report["cues"] == ["edges", "silhouette"]
+    edges_only = tmp_path / "edges.json"
+    assert main(["track", "--demos", str(path), "--episode", "3", "--particles", "50", "--edges-only",
+                 "--json", str(edges_only)]) == 0
+    assert json.loads(edges_only.read_text())["cues"] == ["edges"]
     assert main(["track", "--demos", str(path), "--episode", "3", "--json", str(out)]) == 2  # exists: not replaced
     assert main(["track", "--demos", str(path), "--episode", "9"]) == 2
     errors = capsys.readouterr().err.strip().splitlines()

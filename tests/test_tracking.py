@@ -11,6 +11,7 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.tracking.action_tracker import ActionTracker
 from hoap_actions.primitives.tracking.body_model import BodyModel, Capsule
 from hoap_actions.primitives.tracking.edges import edge_image
+from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
 
 MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
 TORSO_BASE = np.array([-0.47, 0.25, -0.10])  # the demonstration scene's lumbar joint
@@ -44,12 +45,48 @@ def test_capsule_contour_lies_at_the_projected_radius_from_its_axis():
     camera = Camera(eye=(1.0, 0.0, 0.0), target=(0.0, 0.0, 0.0), fov_deg=60.0, width=200, height=200)
     body = BodyModel(("a", "b"), np.zeros(3), capsules=(Capsule("a", "b", 0.05),), points_per_side=5)
     markers = np.array([[[0.0, -0.1, 0.0], [0.0, 0.1, 0.0]]])
-    pixels = body.contour(markers, camera)[0]
+    pixels = body.contour(body.project(markers, camera))[0]
     focal = 100.0 / np.tan(np.radians(30.0))
     sides = pixels[:10]
     np.testing.assert_allclose(np.abs(sides[:, 1] - 100.0), focal * 0.05 / 1.0, rtol=1e-6)
     np.testing.assert_allclose(np.sort(pixels[10:, 0]), 100.0 + np.array([-1, 1]) * focal * 0.15, rtol=1e-6)
     assert body.n_points == 12
+
+
+def test_covers_is_the_projected_capsule_and_the_table_hides_what_is_below_it():
+    """Across the view at depth 1 m: a pixel on the axis and one within the projected radius plus the
+    1 px margin are covered, one beyond it is not; points of the capsule below ``hidden_below_z`` come out as NaN."""
+    camera = Camera(eye=(1.0, 0.0, 0.0), target=(0.0, 0.0, 0.0), fov_deg=60.0, width=200, height=200)
+    body = BodyModel(("a", "b"), np.zeros(3), capsules=(Capsule("a", "b", 0.05),), points_per_side=5)
+    bodies = body.project(np.array([[[0.0, -0.1, 0.0], [0.0, 0.1, 0.0]]]), camera)
+    radius = 100.0 / np.tan(np.radians(30.0)) * 0.05
+    pixels = np.array([[100.0, 100.0], [100.0, 100.0 + radius + 0.5], [100.0, 100.0 + radius + 1.5], [0.0, 0.0]])
+    np.testing.assert_array_equal(body.covers(bodies, pixels)[0], [True, True, False, False])
+    assert not np.isnan(body.contour(bodies)).any() and body.interior(bodies).shape == (1, 5, 2)
+    tilted = BodyModel(("a", "b"), np.zeros(3), capsules=(Capsule("a", "b", 0.05),), points_per_side=5,
+                       hidden_below_z=0.0)
+    bodies = tilted.project(np.array([[[0.0, 0.0, -0.1], [0.0, 0.0, 0.1]]]), camera)  # half below z = 0
+    hidden = np.isnan(tilted.interior(bodies)[0, :, 0])
+    np.testing.assert_array_equal(hidden, [True, True, False, False, False])  # t = 0, 0.25 below; 0.5 on it
+    assert np.isnan(tilted.contour(bodies)).any() and not np.isnan(tilted.contour(bodies, hide=False)).any()
+
+
+def test_background_subtraction_finds_the_person_not_the_noise():
+    rng = np.random.default_rng(0)
+    empty = np.full((60, 80, 3), 120, np.uint8)
+    frame = empty.copy()
+    frame[20:40, 30:50] = (170, 110, 120)  # 50 levels off in one channel: 20 % of full intensity
+    noisy = [np.clip(a + rng.normal(0.0, 255 * 0.03, a.shape), 0, 255).astype(np.uint8) for a in (empty, frame)]
+    F = BackgroundSubtractor(noisy[0])(noisy[1])
+    assert F.dtype == np.float32 and F.shape == (60, 80)
+    assert F[24:36, 34:46].min() > 0.99 and F[:10].max() == 0.0 and F[:, :20].max() == 0.0
+    assert BackgroundSubtractor(empty)(empty.astype(np.float32) / 255).max() == 0.0  # float images work too
+    with pytest.raises(InvalidInputError, match="background's size"):
+        BackgroundSubtractor(empty)(empty[:50])
+    with pytest.raises(InvalidInputError, match="threshold"):
+        BackgroundSubtractor(empty, threshold=0.0)
+    with pytest.raises(InvalidInputError, match="dtype"):
+        BackgroundSubtractor(empty.astype(np.int16))
 
 
 def test_body_model_needs_the_models_markers():
@@ -93,6 +130,33 @@ def test_likelihood_prefers_the_true_pose(models, reach):
     bent[1:] += [0.0, 0.0, 0.05]
     scores = tracker._log_likelihood(np.stack([movement[t], moved, bent]), [G])
     assert scores[0] > scores[1] and scores[0] > scores[2]
+
+
+def silhouettes(body, movement):
+    """The foreground masks of the filled bodies of :func:`images` against an empty grey picture."""
+    empty = np.full((CAMERA.height, CAMERA.width, 3), 90, np.uint8)
+    subtract = BackgroundSubtractor(empty)
+    for pose in movement:
+        yield subtract(body.draw(empty, pose, CAMERA, (220, 180, 150), filled=True))
+
+
+def test_silhouette_term_prefers_the_true_pose_and_is_zero_on_it(models, reach):
+    """The misfit of the true pose is small (its limbs on the person, the person covered but for the
+    mask's fringe); a hand 5 cm off or an elbow 5 cm high leaves part of the person uncovered and puts
+    limb points off it."""
+    _, _, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=3, random_state=0)
+    t = len(movement) * 3 // 4
+    F = next(iter(silhouettes(body, movement[t:t + 1])))
+    poses = np.stack([movement[t], movement[t] + [0.0, 0.05, 0.0], movement[t] + [0.0, 0.0, 0.05]])
+    poses[2, 0] = movement[t, 0]  # the shoulder stays: the arm bends instead
+    misfit = tracker._silhouette_misfit(poses, body.project(poses, CAMERA), F, CAMERA)
+    assert misfit[0] < 0.15 and misfit[1] > misfit[0] + 0.1 and misfit[2] > misfit[0] + 0.1
+    G = next(iter(images(body, movement[t:t + 1])))
+    with_masks = tracker._log_likelihood(poses, [G], [F])
+    np.testing.assert_allclose(tracker._log_likelihood(poses, [G]) - with_masks,
+                               misfit / (2 * tracker.silhouette_sigma**2))
 
 
 def test_tracks_a_reach_better_than_standing_still(models, reach):
@@ -149,3 +213,7 @@ def test_tracker_bad_input(models):
         tracker.step(np.zeros((10, 10), np.float32))
     with pytest.raises(InvalidInputError, match="one edge image per camera"):
         tracker.step([np.zeros((240, 320), np.float32)] * 2)
+    with pytest.raises(InvalidInputError, match="foreground mask must be"):
+        tracker.step(np.zeros((240, 320), np.float32), np.zeros((24, 32), np.float32))
+    with pytest.raises(InvalidInputError, match="silhouette_sigma"):
+        ActionTracker(models, body, CAMERA, silhouette_sigma=0.0)

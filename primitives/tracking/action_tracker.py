@@ -38,13 +38,13 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery import MANIPULATION
-from hoap_actions.primitives.tracking.body_model import BodyModel, Projector
+from hoap_actions.primitives.tracking.body_model import BodyModel, ProjectedBodies, Projector
 
 __all__ = ["ActionTracker", "TrackedFrame"]
 
 # sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen on a validation
 # recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before the arm shows it
-OBSERVATION_SIGMA = 0.5
+OBSERVATION_SIGMA = 0.8
 END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
 END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (cooling, never frozen)
 NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class
@@ -53,8 +53,18 @@ SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
+SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the uncovered shares): see the module docstring
+FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
+FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
 EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
+
+
+def _visible_mean(values: np.ndarray) -> np.ndarray:
+    """Row means over the finite entries (NaN: hidden points); 1 for a row with none (nothing seen)."""
+    seen = np.isfinite(values)
+    count = seen.sum(axis=1)
+    return np.where(count > 0, np.where(seen, values, 0.0).sum(axis=1) / np.maximum(count, 1), 1.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,12 +104,12 @@ class ActionTracker:
 
     def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
                  n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
-                 random_state: int | np.random.Generator | None = None) -> None:
+                 silhouette_sigma: float = SILHOUETTE_SIGMA, random_state: int | np.random.Generator | None = None) -> None:
         check_is_fitted(models)
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
             raise InvalidInputError(f"n_particles must be an int >= 1; got {n_particles!r}")
-        if not (observation_sigma > 0 and end_diffusion_m >= 0):
-            raise InvalidInputError("observation_sigma must be > 0 and end_diffusion_m >= 0")
+        if not (observation_sigma > 0 and silhouette_sigma > 0 and end_diffusion_m >= 0):
+            raise InvalidInputError("observation_sigma and silhouette_sigma must be > 0 and end_diffusion_m >= 0")
         if tuple(body.marker_names) != tuple(models.marker_names_):
             raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
                                     f"{list(models.marker_names_)}")
@@ -108,6 +118,7 @@ class ActionTracker:
         self.n_particles = int(n_particles)
         self.observation_sigma = float(observation_sigma)
         self.end_diffusion_m = float(end_diffusion_m)
+        self.silhouette_sigma = float(silhouette_sigma)
         self._rng = np.random.default_rng(random_state)
         self._ids = np.array(sorted(models.classes_))
         self._n_markers = len(models.marker_names_)
@@ -157,18 +168,15 @@ class ActionTracker:
         return model.centre + np.einsum("np,kp->nk", reduced, model.basis)
 
     # ----------------------------------------------------------------------------- the filter
-    def step(self, edges: np.ndarray | Sequence[np.ndarray]) -> TrackedFrame:
-        """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`), resample."""
-        images = [edges] if isinstance(edges, np.ndarray) else list(edges)
-        if len(images) != len(self.cameras):
-            raise InvalidInputError(f"give one edge image per camera ({len(self.cameras)}); got {len(images)}")
-        for image, camera in zip(images, self.cameras):
-            if np.shape(image) != (camera.height, camera.width):
-                raise InvalidInputError(f"an edge image must be ({camera.height}, {camera.width}) for its camera; "
-                                        f"got {np.shape(image)}")
+    def step(self, edges: np.ndarray | Sequence[np.ndarray],
+             foreground: np.ndarray | Sequence[np.ndarray] | None = None) -> TrackedFrame:
+        """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`) and, when given,
+        the foreground mask(s) (:class:`~hoap_actions.primitives.tracking.silhouette.BackgroundSubtractor`), resample."""
+        images = self._per_camera(edges, "edge image")
+        masks = None if foreground is None else self._per_camera(foreground, "foreground mask")
         self._propagate()
         markers = self.markers()
-        likelihood = self._log_likelihood(markers, images)
+        likelihood = self._log_likelihood(markers, images, masks)
         reinitialised = not np.any(np.isfinite(likelihood))
         if reinitialised:  # nothing explains the image: start again from the prior, never NaN
             self.reset()
@@ -182,6 +190,16 @@ class ActionTracker:
         if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
             self._resample(weights)
         return frame
+
+    def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str) -> list[np.ndarray]:
+        images = [images] if isinstance(images, np.ndarray) else list(images)
+        if len(images) != len(self.cameras):
+            raise InvalidInputError(f"give one {what} per camera ({len(self.cameras)}); got {len(images)}")
+        for image, camera in zip(images, self.cameras):
+            if np.shape(image) != (camera.height, camera.width):
+                raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
+                                        f"got {np.shape(image)}")
+        return images
 
     def _propagate(self) -> None:
         targets, _, table = self._grammar_rows
@@ -269,18 +287,46 @@ class ActionTracker:
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
-    def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray]) -> np.ndarray:
-        """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)``; off-image points count as 1."""
+    def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray],
+                        masks: list[np.ndarray] | None = None) -> np.ndarray:
+        """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)`` over the contour points
+        not hidden by the table; off-image points count as 1. With foreground masks F, each view adds
+        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)`` (:meth:`_silhouette_misfit`)."""
         total = np.zeros(self.n_particles)
-        for image, camera in zip(images, self.cameras):
-            pixels = self.body.contour(markers, camera)
-            u = np.rint(pixels[..., 0]).astype(np.int64)
-            v = np.rint(pixels[..., 1]).astype(np.int64)
-            inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height) & np.isfinite(pixels).all(axis=2)
-            distance = np.ones(u.shape)
-            distance[inside] = 1.0 - image[v[inside], u[inside]]
-            total -= np.mean(distance**2, axis=1) / (2.0 * self.observation_sigma**2)
+        for k, (image, camera) in enumerate(zip(images, self.cameras)):
+            bodies = self.body.project(markers, camera)
+            total -= _visible_mean((1.0 - self._sample(image, self.body.contour(bodies), camera)) ** 2) \
+                / (2.0 * self.observation_sigma**2)
+            if masks is not None:
+                total -= self._silhouette_misfit(markers, bodies, masks[k], camera) / (2.0 * self.silhouette_sigma**2)
         return total
+
+    @staticmethod
+    def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector) -> np.ndarray:
+        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): 0 off the image, NaN for NaN (hidden) pixels."""
+        hidden = ~np.isfinite(pixels).all(axis=-1)
+        u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
+        v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)
+        inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
+        values = np.zeros(u.shape)
+        values[inside] = image[v[inside], u[inside]]
+        values[hidden] = np.nan
+        return values
+
+    def _silhouette_misfit(self, markers: np.ndarray, bodies: ProjectedBodies, mask: np.ndarray,
+                           camera: Projector) -> np.ndarray:
+        """Per particle: the share of its visible limb axis points off the foreground, plus the share of the
+        foreground (sampled on a grid, outside the trunk of the particles' mean pose) its body leaves
+        uncovered; 0 for a pose that matches the silhouette."""
+        off_person = _visible_mean(1.0 - self._sample(mask, self.body.interior(bodies), camera))
+        v, u = np.nonzero(mask[::FOREGROUND_STRIDE_PX, ::FOREGROUND_STRIDE_PX] > 0.5)
+        pixels = np.stack([u, v], axis=1) * FOREGROUND_STRIDE_PX
+        mean_pose = np.sum(self.weights[:, None, None] * markers, axis=0)[None]
+        pixels = pixels[~self.body.covers(self.body.project(mean_pose, camera), pixels, self.body.trunk)[0]]
+        if not len(pixels):  # no one beside the trunk: nothing for an arm to cover
+            return off_person
+        keep = np.unique(np.linspace(0, len(pixels) - 1, min(len(pixels), FOREGROUND_SAMPLES)).astype(int))
+        return off_person + 1.0 - np.mean(self.body.covers(bodies, pixels[keep]), axis=1)
 
     def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool) -> TrackedFrame:
         best = int(np.argmax(weights))

@@ -16,7 +16,7 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "Projector"]
+__all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "ProjectedBodies", "Projector"]
 
 
 class Projector(Protocol):
@@ -56,6 +56,8 @@ ARM_CAPSULES = (
 # m, points of the trunk placed from the right shoulder marker (measured on the demonstrator at rest and
 # mid-reach, within 1.5 cm): the capsule end below the thorax's top (its cap reaches the top), and the
 # head's axis. The trunk's base is the lumbar joint, which stays put (``torso_base``).
+COVER_MARGIN_PX = 1.0  # px: the denoising blur and the low threshold spread a mask past the outline (1 px chosen on validation)
+LIMB_MIN_RADIUS_M = 0.02  # fingers (1 cm) are 1-3 px wide at 320 x 240: a softened mask barely holds them
 FROM_SHOULDER = {
     "neck": np.array([0.0, 0.227, 0.026 - 0.14]),
     "head_low": np.array([0.01, 0.227, 0.216 - 0.03]),
@@ -63,15 +65,34 @@ FROM_SHOULDER = {
 }
 
 
+@dataclass(frozen=True)
+class ProjectedBodies:
+    """``N`` bodies' capsules in one image: end points ``a``, ``b`` (N, C, 2) and radii ``rho_a``, ``rho_b``
+    (N, C) in pixels, and the end points' heights ``z_a``, ``z_b`` (N, C, m). Computed once per frame and
+    shared by every part of the likelihood."""
+
+    a: np.ndarray
+    b: np.ndarray
+    rho_a: np.ndarray
+    rho_b: np.ndarray
+    z_a: np.ndarray
+    z_b: np.ndarray
+
+
 class BodyModel:
     """Capsules over the markers ``marker_names`` (plus the trunk's fixed base ``torso_base``, the lumbar
     joint, m, scene frame).
 
-    :meth:`contour` gives ``(N, P, 2)`` pixels for ``N`` bodies of markers ``(N, M, 3)``.
+    :meth:`project` puts ``N`` bodies of markers ``(N, M, 3)`` into an image; :meth:`contour` gives their
+    outlines ``(N, P, 2)``, :meth:`interior` points on their limbs, :meth:`covers` which pixels they cover. With
+    ``hidden_below_z`` (m, the table top), points of the body below that height are hidden by the table
+    from a camera above it: :meth:`contour` and :meth:`interior` give them as NaN, so that a hand
+    hanging below the table is neither rewarded nor punished by what the image shows there.
     """
 
     def __init__(self, marker_names: tuple[str, ...], torso_base: np.ndarray,
-                 capsules: tuple[Capsule, ...] = ARM_CAPSULES, points_per_side: int = 8) -> None:
+                 capsules: tuple[Capsule, ...] = ARM_CAPSULES, points_per_side: int = 8,
+                 hidden_below_z: float | None = None) -> None:
         self.marker_names = tuple(marker_names)
         known = set(self.marker_names) | {"torso_base"} | set(FROM_SHOULDER)
         missing = sorted({name for c in capsules for name in (c.start, c.end)} - known)
@@ -84,6 +105,7 @@ class BodyModel:
         self.capsules = capsules
         self.points_per_side = int(points_per_side)
         self._radius = np.array([c.radius for c in capsules])
+        self.hidden_below_z = hidden_below_z
 
     @property
     def n_points(self) -> int:
@@ -97,8 +119,8 @@ class BodyModel:
             return markers[:, self.marker_names.index("shoulder")] + FROM_SHOULDER[name]
         return markers[:, self.marker_names.index(name)]
 
-    def contour(self, markers: np.ndarray, camera: Projector) -> np.ndarray:
-        """Pixels ``(N, P, 2)`` of the bodies' silhouettes for markers ``(N, M, 3)`` (m, scene frame)."""
+    def project(self, markers: np.ndarray, camera: Projector) -> ProjectedBodies:
+        """The capsules of the bodies with markers ``(N, M, 3)`` (m, scene frame) in ``camera``'s image."""
         markers = np.asarray(markers, dtype=float)
         n = markers.shape[0]
         starts = np.stack([self._point(c.start, markers) for c in self.capsules], axis=1)  # (N, C, 3)
@@ -107,9 +129,21 @@ class BodyModel:
         radius = self._radius[None, :, None]
         points = np.concatenate([starts, ends, starts + radius * side, ends + radius * side], axis=1)
         pixels = camera.project(points.reshape(-1, 3)).reshape(n, 4, len(self.capsules), 2)
-        a, b = pixels[:, 0], pixels[:, 1]                                     # (N, C, 2)
-        rho_a = np.linalg.norm(pixels[:, 2] - a, axis=2)                      # projected radii (px)
-        rho_b = np.linalg.norm(pixels[:, 3] - b, axis=2)
+        a, b = pixels[:, 0], pixels[:, 1]
+        return ProjectedBodies(a, b, np.linalg.norm(pixels[:, 2] - a, axis=2), np.linalg.norm(pixels[:, 3] - b, axis=2),
+                               starts[..., 2], ends[..., 2])
+
+    def _hide(self, pixels: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """``pixels`` (..., 2) with the points whose height ``z`` (...) is below :attr:`hidden_below_z` set to NaN."""
+        if self.hidden_below_z is None:
+            return pixels
+        return np.where((z < self.hidden_below_z)[..., None], np.nan, pixels)
+
+    def contour(self, bodies: ProjectedBodies, hide: bool = True) -> np.ndarray:
+        """Pixels ``(N, P, 2)`` of the bodies' silhouettes; NaN where hidden by the table (``hide`` and
+        :attr:`hidden_below_z`)."""
+        a, b, rho_a, rho_b, z_a, z_b = bodies.a, bodies.b, bodies.rho_a, bodies.rho_b, bodies.z_a, bodies.z_b
+        n = a.shape[0]
         axis = b - a
         length = np.linalg.norm(axis, axis=2, keepdims=True)
         direction = np.where(length > 1e-9, axis / np.maximum(length, 1e-9), np.array([1.0, 0.0]))
@@ -120,7 +154,50 @@ class BodyModel:
         left = centre + rho * normal[:, :, None]
         right = centre - rho * normal[:, :, None]
         caps = np.stack([a - rho_a[..., None] * direction, b + rho_b[..., None] * direction], axis=2)
-        return np.concatenate([left, right, caps], axis=2).reshape(n, -1, 2)
+        pixels = np.concatenate([left, right, caps], axis=2).reshape(n, -1, 2)
+        if not hide:
+            return pixels
+        z_side = z_a[:, :, None] + t[..., 0] * (z_b - z_a)[:, :, None]
+        z = np.concatenate([z_side, z_side, np.stack([z_a, z_b], axis=2)], axis=2).reshape(n, -1)
+        return self._hide(pixels, z)
+
+    @property
+    def trunk(self) -> np.ndarray:
+        """Indices of the capsules placed from the trunk alone (torso, head)."""
+        points = {"torso_base", *FROM_SHOULDER}
+        return np.array([k for k, c in enumerate(self.capsules) if {c.start, c.end} <= points], dtype=int)
+
+    @property
+    def limbs(self) -> np.ndarray:
+        """Indices of the capsules that move with the arm (not :attr:`trunk`) and are wide enough
+        (``LIMB_MIN_RADIUS_M``) for their axis to lie surely on the person in a foreground mask."""
+        wide = np.flatnonzero(self._radius >= LIMB_MIN_RADIUS_M)
+        return np.setdiff1d(wide, self.trunk)
+
+    def interior(self, bodies: ProjectedBodies) -> np.ndarray:
+        """Pixels ``(N, L * K, 2)`` along the projected axes of the limbs (:attr:`limbs`): where the body
+        surely is, whatever the capsule's width in the image (NaN where hidden by the table)."""
+        a, b, z_a, z_b = bodies.a, bodies.b, bodies.z_a, bodies.z_b
+        limbs = self.limbs
+        t = np.linspace(0.0, 1.0, self.points_per_side)[None, None, :, None]
+        points = a[:, limbs, None] + t * (b - a)[:, limbs, None]
+        z = z_a[:, limbs, None] + t[..., 0] * (z_b - z_a)[:, limbs, None]
+        return self._hide(points.reshape(a.shape[0], -1, 2), z.reshape(a.shape[0], -1))
+
+    def covers(self, bodies: ProjectedBodies, pixels: np.ndarray, capsules: np.ndarray | None = None) -> np.ndarray:
+        """``(N, P)``: whether each of ``pixels`` (P, 2) lies inside body ``n``'s silhouette (the union of
+        its projected capsules, or of those indexed by ``capsules``: within the interpolated radius of the
+        nearest axis point, plus ``COVER_MARGIN_PX``)."""
+        a, b, rho_a, rho_b = (x.astype(np.float32) for x in (bodies.a, bodies.b, bodies.rho_a, bodies.rho_b))
+        px, py = (np.asarray(pixels, np.float32)[None, :, k] for k in (0, 1))
+        inside = np.zeros((a.shape[0], px.shape[1]), dtype=bool)
+        for c in range(len(self.capsules)) if capsules is None else capsules:
+            ux, uy = (b[:, c, k:k + 1] - a[:, c, k:k + 1] for k in (0, 1))
+            dx, dy = px - a[:, c, 0:1], py - a[:, c, 1:2]
+            t = np.clip((dx * ux + dy * uy) / np.maximum(ux * ux + uy * uy, 1e-6), 0.0, 1.0)
+            rho = rho_a[:, c:c + 1] + t * (rho_b[:, c:c + 1] - rho_a[:, c:c + 1]) + COVER_MARGIN_PX
+            inside |= (dx - t * ux) ** 2 + (dy - t * uy) ** 2 <= rho * rho
+        return inside
 
     def draw(self, image: np.ndarray, markers: np.ndarray, camera: Projector, color: tuple[int, int, int],
              filled: bool = False, thickness: int = 1) -> np.ndarray:
@@ -128,7 +205,8 @@ class BodyModel:
         (or, ``filled``, its silhouette, nearest capsule last)."""
         out = np.ascontiguousarray(image).copy()
         k = self.points_per_side
-        outline = self.contour(np.asarray(markers, float)[None], camera)[0].reshape(len(self.capsules), -1, 2)
+        bodies = self.project(np.asarray(markers, float)[None], camera)
+        outline = self.contour(bodies, hide=False)[0].reshape(len(self.capsules), -1, 2)
         for capsule in outline:
             left, right, caps = capsule[:k], capsule[k:2 * k], capsule[2 * k:]
             polygon = np.vstack([caps[:1], left, caps[1:], right[::-1]])

@@ -11,28 +11,33 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["edge_image"]
+__all__ = ["as_float_image", "check_image", "edge_image"]
 
 THRESHOLD = 0.25  # share of the strongest gradient above which a pixel counts as a full edge
 BLUR_SIGMA_PX = 2.0  # how far (px) an edge's pull reaches: a contour a few pixels off still scores
 
 
-def _gray(image: np.ndarray) -> np.ndarray:
-    """A float32 grey image (H, W) in [0, 1] from uint8 or float RGB / grey input, checked."""
+def check_image(image: np.ndarray) -> np.ndarray:
+    """``image`` as an array once checked: (H, W) grey or (H, W, 3|4) colour, H, W >= 8, uint8 or finite float."""
     arr = np.asarray(image)
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] not in (3, 4)) or min(arr.shape[:2]) < 8:
         raise InvalidInputError(f"an image must be (H, W) grey or (H, W, 3|4) colour with H, W >= 8; "
                                 f"got shape {arr.shape}")
-    if arr.dtype == np.uint8:
-        arr = arr.astype(np.float32) / 255.0
-    elif arr.dtype.kind == "f":
+    if arr.dtype.kind == "f":
         if not np.all(np.isfinite(arr)):
             raise InvalidInputError("a float image must be finite (no NaN or inf)")
-        arr = arr.astype(np.float32)
-    else:
+    elif arr.dtype != np.uint8:
         raise InvalidInputError(f"an image must be uint8 (0-255) or float (0-1); got dtype {arr.dtype}")
+    return arr
+
+
+def as_float_image(image: np.ndarray, keep_colour: bool = False) -> np.ndarray:
+    """A float32 image in [0, 1] from uint8 or float RGB(A) / grey input, checked: grey (H, W), or with
+    ``keep_colour`` the colour channels (H, W, 3) of a colour image."""
+    arr = check_image(image)
+    arr = arr.astype(np.float32) / 255.0 if arr.dtype == np.uint8 else arr.astype(np.float32)
     if arr.ndim == 3:
-        arr = arr[..., :3].mean(axis=2)
+        arr = np.ascontiguousarray(arr[..., :3]) if keep_colour else arr[..., :3].mean(axis=2)
     return arr
 
 
@@ -41,7 +46,7 @@ def edge_image(image: np.ndarray, threshold: float = THRESHOLD, blur_sigma_px: f
     if not (0.0 < threshold <= 1.0) or not (blur_sigma_px > 0.0 and np.isfinite(blur_sigma_px)):
         raise InvalidInputError(f"threshold must be in (0, 1] and blur_sigma_px > 0; "
                                 f"got {threshold!r}, {blur_sigma_px!r}")
-    gray = _gray(image)
+    gray = as_float_image(image)
     # the magnitude by numpy: cv2.magnitude's first call in a process rounds differently from later ones
     gradient = np.hypot(cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3))
     peak = float(gradient.max())
