@@ -22,7 +22,12 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
 
 Observation, eq. (8): the posed body is projected into the camera and its contour scored on the edge
 image, ``exp(-mean_C (1 - G(c))^2 / (2 sigma^2))``, in log form (so no likelihood underflows); eq. (9)
-sums the exponents over several views. Weights carry over between frames; systematic resampling when
+sums the exponents over several views. Contour points below the table top (``BodyModel.hidden_below_z``)
+are not scored: the camera cannot see a hand hanging below the table. Edges alone reward any contour
+on clutter and cannot place an arm in front of a trunk of its colour, so with foreground masks
+(:mod:`~hoap_actions.primitives.tracking.silhouette`) a silhouette term joins them: the share of the
+limbs' axis points off the person plus the share of the person (outside the trunk) the body leaves
+uncovered, over ``2 sigma_s^2``. Weights carry over between frames; systematic resampling when
 the effective sample size falls below half the particles (resampling every frame collapses the end
 estimates before the arm has shown where it goes).
 """
@@ -42,8 +47,9 @@ from hoap_actions.primitives.tracking.body_model import BodyModel, ProjectedBodi
 
 __all__ = ["ActionTracker", "TrackedFrame"]
 
-# sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen on a validation
-# recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before the arm shows it
+# sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen with the silhouette term
+# on a validation recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before
+# the arm shows it
 OBSERVATION_SIGMA = 0.8
 END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
 END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (cooling, never frozen)
@@ -53,7 +59,7 @@ SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
-SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the uncovered shares): see the module docstring
+SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
 FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
