@@ -13,6 +13,7 @@ class (frame agreement). Speed: frames per second of edge image, foreground mask
 episode, rendering excluded.
 
     python benchmarks/tracking.py [--seeds 231 232 233] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
+    python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
 
 Recordings are ``data/paper-s<seed>.h5``, recorded when missing. Writes ``results/tracking.json``.
 """
@@ -43,6 +44,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--particles", type=int, default=400)
     parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
     parser.add_argument("--noise", type=float, default=0.0, help="Gaussian image noise (share of full intensity)")
+    parser.add_argument("--speed-only", action="store_true",
+                        help="measure frames per second only (on the first seed's last episode), e.g. on a quiet machine")
     return parser.parse_args(argv)
 
 
@@ -118,6 +121,13 @@ def main(argv: list[str] | None = None) -> dict:
 
     started = time.perf_counter()
     models = load_default_models()
+    if args.speed_only:
+        result = {"protocol": {"seed": args.seeds[0], "episode": args.episodes[-1], "filter_seed": 0},
+                  "speed": speed(models, load_demonstrations(ensure_recording("paper", args.seeds[0], args.data)),
+                                 args.episodes[-1])}
+        result["environment"] = {**numeric_environment(None), "runtime_s": round(time.perf_counter() - started, 1)}
+        write_json(args.output, result)
+        return result
     per_recording, edges_only = {}, {}
     for seed in args.seeds:
         demos = load_demonstrations(ensure_recording("paper", seed, args.data))

@@ -213,6 +213,8 @@ def test_tracker_bad_input(models):
         tracker.step(np.zeros((10, 10), np.float32))
     with pytest.raises(InvalidInputError, match="one edge image per camera"):
         tracker.step([np.zeros((240, 320), np.float32)] * 2)
+    with pytest.raises(InvalidInputError, match=r"finite values in \[0, 1\]"):
+        tracker.step(np.full((240, 320), np.nan, np.float32))
     with pytest.raises(InvalidInputError, match="foreground mask must be"):
         tracker.step(np.zeros((240, 320), np.float32), np.zeros((24, 32), np.float32))
     with pytest.raises(InvalidInputError, match="silhouette_sigma"):

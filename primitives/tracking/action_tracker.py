@@ -198,6 +198,7 @@ class ActionTracker:
         return frame
 
     def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str) -> list[np.ndarray]:
+        """One checked image per camera: the camera's size, values in [0, 1]."""
         images = [images] if isinstance(images, np.ndarray) else list(images)
         if len(images) != len(self.cameras):
             raise InvalidInputError(f"give one {what} per camera ({len(self.cameras)}); got {len(images)}")
@@ -205,6 +206,8 @@ class ActionTracker:
             if np.shape(image) != (camera.height, camera.width):
                 raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
                                         f"got {np.shape(image)}")
+            if not (np.all(np.isfinite(image)) and np.min(image) >= 0.0 and np.max(image) <= 1.0):
+                raise InvalidInputError(f"a {what} must hold finite values in [0, 1]")
         return images
 
     def _propagate(self) -> None:
