@@ -5,13 +5,15 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from hoap_actions.default_models import load_default_models
 from hoap_actions.envs.recording import record
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.tracking import track_episode
+from hoap_actions.primitives.tracking.body_model import BodyModel
+from hoap_actions.tracking import track_episode, tracking_video_frames
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +33,13 @@ def test_tracks_an_episode_from_rendered_frames(small):
     assert summary["rms_m"]["shoulder"] < 0.05
     assert 0.0 < summary["rms_m_all"] < 0.5 and summary["hz"] > 0
     assert summary["approaches"] == 1 and summary["cues"] == ["edges", "silhouette"]
-    again = track_episode(models, small, episode, particles=100, seed=0).summary()
+    filmed = track_episode(models, small, episode, particles=100, seed=0, keep_images=True)
+    again = filmed.summary()  # the same seed gives the same track, filmed or not
     assert again["rms_m_all"] == summary["rms_m_all"] and again["recognized"] == summary["recognized"]
+    body = BodyModel(models.marker_names_, torso_base=filmed.torso_base)
+    frames = tracking_video_frames(filmed, body, every=4)
+    assert len(frames) == -(-T // 4) and frames[0].shape == (240, 640, 3) and frames[0].dtype == np.uint8
+    assert len({frame.tobytes() for frame in frames}) > len(frames) // 2  # the picture moves
 
 
 def test_several_views_are_scored_together(small):
@@ -92,8 +99,6 @@ def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path,
 
 
 def test_a_noisy_recording_with_gaps_is_tracked_against_its_bridged_markers(tmp_path):
-    import numpy as np
-
     noisy = load_demonstrations(record("small", tmp_path / "noisy.h5", seed=0, progress=False,
                                        noise="marker=1,gaps=2,object=1,angle=1"))
     assert np.isnan(noisy[3].H).any()  # markers missing in some frames
