@@ -102,7 +102,7 @@ class Robot:
         self.feet_xy = (float(feet_xy[0]), float(feet_xy[1]))
         self.yaw, self.floor_z = float(yaw), float(floor_z)
         self.position_gain, self.velocity_gain = float(position_gain), float(velocity_gain)
-        sim.load_urdf(name, ROBOT_MODELS[model], fixed_base=self.fixed_legs)
+        sim.load_urdf(name, ROBOT_MODELS[model], fixed_base=self.fixed_legs, merge_fixed_links=self.fixed_legs)
         motors = {j.name: j for j in sim.joints(name)}
         self.joint_names: tuple[str, ...] = tuple(n for n in sim.joint_names(name) if n in motors or n in LEG_JOINTS)
         self._position = {n: i for i, n in enumerate(self.joint_names)}

@@ -7,6 +7,7 @@ one process are independent. Quaternions are ``(x, y, z, w)`` as PyBullet gives 
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import subprocess
@@ -22,24 +23,25 @@ from hoap_actions.urdf import urdf_path
 
 
 @contextlib.contextmanager
-def _c_stderr_silenced() -> Iterator[None]:
-    """Send what C code writes to file descriptor 2 to /dev/null meanwhile (Python's own errors still raise)."""
+def _c_output_silenced(fd: int = 2) -> Iterator[None]:
+    """Send what C code writes to file descriptor ``fd`` (2: stderr, 1: stdout) to /dev/null meanwhile
+    (Python's own errors still raise)."""
     try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError, AttributeError):  # no usable stderr: nothing to silence
+        (sys.stderr if fd == 2 else sys.stdout).flush()
+        saved = os.dup(fd)
+    except (OSError, ValueError, AttributeError):  # no usable stream: nothing to silence
         yield
         return
     try:
         with open(os.devnull, "w") as devnull:
-            os.dup2(devnull.fileno(), 2)
+            os.dup2(devnull.fileno(), fd)
             yield
     finally:
-        os.dup2(saved, 2)
+        os.dup2(saved, fd)
         os.close(saved)
 
 
-with _c_stderr_silenced():  # PyBullet's C module prints its build time when imported
+with _c_output_silenced():  # PyBullet's C module prints its build time when imported
     import pybullet
 from pybullet_utils.bullet_client import BulletClient  # noqa: E402
 
@@ -211,6 +213,48 @@ class CameraImage:
     segmentation: np.ndarray
 
 
+@dataclass(frozen=True)
+class FoldedLinks:
+    """What ``URDF_MERGE_FIXED_LINKS`` folds away: every joint name of the model (in PyBullet's order),
+    and each folded link's name, the kept link it now rides on, and its fixed offset from that link."""
+
+    joint_names: tuple[str, ...]
+    names: list[str]
+    hosts: list[str]
+    offsets: list[tuple]
+
+
+@functools.lru_cache(maxsize=8)
+def _folded_links(path: str, scale: float) -> FoldedLinks:
+    """Read the model unmerged in a scratch physics server: the joint names and, for every link on a
+    fixed joint, the nearest ancestor on a moving joint (or the base) and the pose between the two."""
+    scratch = _Client(pybullet.DIRECT)
+    try:
+        body = scratch.loadURDF(path, useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE, globalScaling=scale)
+        infos = [scratch.getJointInfo(body, j) for j in range(scratch.getNumJoints(body))]
+        base_com = scratch.getBasePositionAndOrientation(body)
+        frames = {-1: scratch.multiplyTransforms(*base_com, *scratch.invertTransform(*scratch.getDynamicsInfo(body, -1)[3:5]))}
+        for j in range(len(infos)):
+            state = scratch.getLinkState(body, j, computeForwardKinematics=True)
+            frames[j] = (state[4], state[5])
+        names, hosts, offsets = [], [], []
+        link_name = {j: info[12].decode() for j, info in enumerate(infos)} | {-1: scratch.getBodyInfo(body)[0].decode()}
+        for j, info in enumerate(infos):
+            if info[2] != pybullet.JOINT_FIXED:
+                continue
+            host = info[16]  # parent link index
+            while host != -1 and infos[host][2] == pybullet.JOINT_FIXED:
+                host = infos[host][16]
+            inverse = scratch.invertTransform(*frames[host])
+            names.append(link_name[j])
+            hosts.append(link_name[host])
+            offsets.append(scratch.multiplyTransforms(*inverse, *frames[j]))
+        return FoldedLinks(tuple(info[1].decode() for info in infos), names, hosts, offsets)
+    finally:
+        scratch.disconnect()
+        scratch._client = -1  # so BulletClient.__del__ does not disconnect again
+
+
 class Sim:
     """A PyBullet world: load bodies under names, step, save/restore state, render cameras.
 
@@ -236,6 +280,7 @@ class Sim:
         self._bodies: dict[str, int] = {}
         self._joints: dict[str, list[JointInfo]] = {}
         self._base_offsets: dict[int, tuple] = {}
+        self._folded: dict[str, FoldedLinks] = {}
         self._recipe: list[tuple[str, tuple, dict]] = []
         self.cameras: dict[str, Camera] = {}
         self._configure_world()
@@ -269,6 +314,7 @@ class Sim:
         self._bodies.clear()
         self._joints.clear()
         self._base_offsets.clear()
+        self._folded.clear()
         self._configure_world()
         for method, args, kwargs in recipe:
             getattr(self, method)(*args, **kwargs)
@@ -304,16 +350,21 @@ class Sim:
         self_collision: bool = False,
         scale: float = 1.0,
         implicit_cylinders: bool = False,
+        merge_fixed_links: bool = False,
     ) -> int:
         """Load a URDF (a packaged name such as ``"hoap3.urdf"`` or a path) as body ``name``.
 
         ``implicit_cylinders=True`` collides URDF cylinders as exact cylinders; by default PyBullet
         uses a convex hull that its 1 mm collision margin inflates (a 15 mm peg acts 17 mm wide).
+        ``merge_fixed_links=True`` folds every link on a fixed joint into its parent (PyBullet's
+        ``URDF_MERGE_FIXED_LINKS``: fewer links to step; welded legs cost half a robot's physics step);
+        the folded links stay addressable by name (:meth:`link_index`, :meth:`link_poses`) and
+        :meth:`joint_names` still lists every joint of the model.
         """
         if name in self._bodies:
             raise InvalidInputError(f"a body named {name!r} already exists; names in use: {sorted(self._bodies)}")
         self._record("load_urdf", name, filename, position, orientation, fixed_base, self_collision, scale,
-                     implicit_cylinders)
+                     implicit_cylinders, merge_fixed_links)
         path = Path(filename)
         if not path.is_file():
             path = urdf_path(str(filename))
@@ -322,11 +373,16 @@ class Sim:
             flags |= pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
         if implicit_cylinders:
             flags |= pybullet.URDF_USE_IMPLICIT_CYLINDER
-        body = self._p.loadURDF(
-            str(path), position, orientation, useFixedBase=fixed_base, flags=flags, globalScaling=scale
-        )
+        if merge_fixed_links:
+            flags |= pybullet.URDF_MERGE_FIXED_LINKS
+        with _c_output_silenced(1) if merge_fixed_links else contextlib.nullcontext():  # merging prints every link
+            body = self._p.loadURDF(
+                str(path), position, orientation, useFixedBase=fixed_base, flags=flags, globalScaling=scale
+            )
         self._bodies[name] = body
         self._joints[name] = self._read_joints(body)
+        if merge_fixed_links:
+            self._folded[name] = _folded_links(str(path), float(scale))
         return body
 
     def add_ground_plane(self, name: str = "ground", z: float = 0.0, lateral_friction: float = 1.0) -> int:
@@ -372,16 +428,22 @@ class Sim:
     def joint_names(self, name: str) -> list[str]:
         """Every joint of body ``name`` in model order, fixed ones included (:meth:`joints` lists the movable ones)."""
         body = self.body_id(name)
+        if name in self._folded:
+            return list(self._folded[name].joint_names)
         return [self._p.getJointInfo(body, j)[1].decode() for j in range(self._p.getNumJoints(body))]
 
     def link_index(self, name: str, link_name: str) -> int:
-        """Index of link ``link_name`` of body ``name`` (-1 is the base)."""
+        """Index of link ``link_name`` of body ``name`` (-1 is the base; below -1, a link folded into
+        another by ``merge_fixed_links``, which only :meth:`link_poses` reads)."""
         body = self.body_id(name)
         if self._p.getBodyInfo(body)[0].decode() == link_name:
             return -1
         for j in range(self._p.getNumJoints(body)):
             if self._p.getJointInfo(body, j)[12].decode() == link_name:
                 return j
+        folded = self._folded.get(name)
+        if folded is not None and link_name in folded.names:
+            return -2 - folded.names.index(link_name)
         raise InvalidInputError(f"body {name!r} has no link named {link_name!r}")
 
     # -------------------------------------------------------------------- state
@@ -407,7 +469,12 @@ class Sim:
         body = self.body_id(name)
         positions, quats = np.empty((len(links), 3)), np.empty((len(links), 4))
         for row, link in enumerate(links):
-            if link == -1:
+            if link < -1:  # folded into a kept link: that link's frame, then the fixed joints' offset
+                folded = self._folded[name]
+                host, offset = folded.hosts[-2 - link], folded.offsets[-2 - link]
+                host_pose = self.link_poses(name, [self.link_index(name, host)])
+                pos, quat = self._p.multiplyTransforms(host_pose[0][0], host_pose[1][0], *offset)
+            elif link == -1:
                 pos, quat = self._p.getBasePositionAndOrientation(body)
                 # the base's URDF frame differs from its centre-of-mass frame by the inertial offset
                 pos, quat = self._p.multiplyTransforms(pos, quat, *self._base_offset(body))
