@@ -233,7 +233,8 @@ def _folded_links(path: str, scale: float) -> FoldedLinks:
         body = scratch.loadURDF(path, useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE, globalScaling=scale)
         infos = [scratch.getJointInfo(body, j) for j in range(scratch.getNumJoints(body))]
         base_com = scratch.getBasePositionAndOrientation(body)
-        frames = {-1: scratch.multiplyTransforms(*base_com, *scratch.invertTransform(*scratch.getDynamicsInfo(body, -1)[3:5]))}
+        inertial = scratch.getDynamicsInfo(body, -1)[3:5]  # the base's centre-of-mass frame in its URDF frame
+        frames = {-1: scratch.multiplyTransforms(*base_com, *scratch.invertTransform(*inertial))}
         for j in range(len(infos)):
             state = scratch.getLinkState(body, j, computeForwardKinematics=True)
             frames[j] = (state[4], state[5])
@@ -281,6 +282,7 @@ class Sim:
         self._joints: dict[str, list[JointInfo]] = {}
         self._base_offsets: dict[int, tuple] = {}
         self._folded: dict[str, FoldedLinks] = {}
+        self._folded_hosts: dict[str, list[int]] = {}  # per body, the link index each folded link rides on
         self._recipe: list[tuple[str, tuple, dict]] = []
         self.cameras: dict[str, Camera] = {}
         self._configure_world()
@@ -315,6 +317,7 @@ class Sim:
         self._joints.clear()
         self._base_offsets.clear()
         self._folded.clear()
+        self._folded_hosts.clear()
         self._configure_world()
         for method, args, kwargs in recipe:
             getattr(self, method)(*args, **kwargs)
@@ -382,7 +385,9 @@ class Sim:
         self._bodies[name] = body
         self._joints[name] = self._read_joints(body)
         if merge_fixed_links:
-            self._folded[name] = _folded_links(str(path), float(scale))
+            folded = _folded_links(str(path), float(scale))
+            self._folded[name] = folded
+            self._folded_hosts[name] = [self.link_index(name, host) for host in folded.hosts]
         return body
 
     def add_ground_plane(self, name: str = "ground", z: float = 0.0, lateral_friction: float = 1.0) -> int:
@@ -470,10 +475,8 @@ class Sim:
         positions, quats = np.empty((len(links), 3)), np.empty((len(links), 4))
         for row, link in enumerate(links):
             if link < -1:  # folded into a kept link: that link's frame, then the fixed joints' offset
-                folded = self._folded[name]
-                host, offset = folded.hosts[-2 - link], folded.offsets[-2 - link]
-                host_pose = self.link_poses(name, [self.link_index(name, host)])
-                pos, quat = self._p.multiplyTransforms(host_pose[0][0], host_pose[1][0], *offset)
+                (host_position,), (host_quat,) = self.link_poses(name, [self._folded_hosts[name][-2 - link]])
+                pos, quat = self._p.multiplyTransforms(host_position, host_quat, *self._folded[name].offsets[-2 - link])
             elif link == -1:
                 pos, quat = self._p.getBasePositionAndOrientation(body)
                 # the base's URDF frame differs from its centre-of-mass frame by the inertial offset
