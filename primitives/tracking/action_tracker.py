@@ -102,9 +102,10 @@ class ActionTracker:
         models: fitted :class:`ActionModels` (their class PHMMs, grammar and markers).
         body: the :class:`BodyModel` that turns markers into a contour.
         cameras: one or more :class:`~hoap_actions.primitives.tracking.body_model.Projector` cameras, one
-            edge image each.
+            edge image (and, optionally, one foreground mask) each.
         n_particles: particles (the paper used 400).
         observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
+        silhouette_sigma: the silhouette term's sigma, used when :meth:`step` is given foreground masks.
         random_state: seed of the filter's draws.
     """
 
