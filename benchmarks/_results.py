@@ -26,13 +26,26 @@ def arguments(output: str, data: bool = False, threads: bool = False) -> argpars
     with ``data``, ``--data``, the folder recordings are found in or made in (default the checkout's
     ``data/``); with ``threads``, ``--threads``, the BLAS threads (default 1, see :func:`use_blas_threads`)."""
     parser = argparse.ArgumentParser(add_help=False)
-    parser.add_argument("--output", type=Path, default=RESULTS / output, help="JSON file to write (default: %(default)s)")
+    parser.add_argument("--output", type=_writable_path, default=RESULTS / output,
+                        help="JSON file to write (default: %(default)s)")
     if data:
         parser.add_argument("--data", type=Path, default=DATA,
                             help="folder of recordings, made there when missing (default: %(default)s)")
     if threads:
         parser.add_argument("--threads", type=int, default=1, help="BLAS threads (default: %(default)s)")
     return parser
+
+
+def _writable_path(text: str) -> Path:
+    """``--output`` checked before the run, not after it: its folder is made now and must be writable."""
+    path = Path(text)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot make the folder of {path}: {exc.strerror}") from None
+    if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise argparse.ArgumentTypeError(f"cannot write {path}")
+    return path
 
 
 def use_blas_threads(threads: int) -> None:

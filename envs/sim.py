@@ -451,6 +451,17 @@ class Sim:
             return -2 - folded.names.index(link_name)
         raise InvalidInputError(f"body {name!r} has no link named {link_name!r}")
 
+    def _physical_link(self, name: str, link: int | None) -> int | None:
+        """``link`` as PyBullet knows it; a folded link (below -1) has no body of its own to change, touch
+        or hold (PyBullet would ignore it or fail), so it is refused with the link to use instead."""
+        if link is not None and link < -1:
+            folded = self._folded.get(name)
+            if folded is None or -2 - link >= len(folded.names):
+                raise InvalidInputError(f"body {name!r} has no link {link}; links are -1 (the base) and up")
+            raise InvalidInputError(f"link {folded.names[-2 - link]!r} of body {name!r} is folded into "
+                                    f"{folded.hosts[-2 - link]!r} (merge_fixed_links): use that link")
+        return link
+
     # -------------------------------------------------------------------- state
     def base_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Position (3,) and quaternion (x, y, z, w) of the body's base (its centre-of-mass frame)."""
@@ -562,11 +573,13 @@ class Sim:
     def set_dynamics(self, name: str, link: int = -1, **kwargs: float) -> None:
         """Change contact/dynamics properties (``lateralFriction``, ``mass``, ...) of one link."""
         body = self.body_id(name)
+        self._physical_link(name, link)
         self._record("set_dynamics", name, link, **kwargs)
         self._p.changeDynamics(body, link, **kwargs)
 
     def set_color(self, name: str, rgba: tuple[float, float, float, float], link: int = -1) -> None:
         body = self.body_id(name)
+        self._physical_link(name, link)
         self._record("set_color", name, rgba, link)
         self._p.changeVisualShape(body, link, rgbaColor=list(rgba))
 
@@ -582,7 +595,7 @@ class Sim:
         return float(m.sum()), (m[:, None] * np.array(coms)).sum(axis=0) / m.sum()
 
     def aabb(self, name: str, link: int = -1) -> tuple[np.ndarray, np.ndarray]:
-        lo, hi = self._p.getAABB(self.body_id(name), link)
+        lo, hi = self._p.getAABB(self.body_id(name), self._physical_link(name, link))
         return np.array(lo), np.array(hi)
 
     def contacts(self, name_a: str, name_b: str | None = None, link_a: int | None = None) -> list[dict]:
@@ -591,7 +604,7 @@ class Sim:
         if name_b is not None:
             kwargs["bodyB"] = self.body_id(name_b)
         if link_a is not None:
-            kwargs["linkIndexA"] = link_a
+            kwargs["linkIndexA"] = self._physical_link(name_a, link_a)
         return [
             {"link_a": c[3], "link_b": c[4], "position": np.array(c[5]), "normal_force": c[9]}
             for c in self._p.getContactPoints(**kwargs)
@@ -620,7 +633,7 @@ class Sim:
         """
         kwargs = {"bodyA": self.body_id(name_a), "bodyB": self.body_id(name_b), "distance": float(max_distance)}
         if link_a is not None:
-            kwargs["linkIndexA"] = link_a
+            kwargs["linkIndexA"] = self._physical_link(name_a, link_a)
         points = self._p.getClosestPoints(**kwargs)
         return min((c[8] for c in points), default=float("inf"))
 
@@ -632,6 +645,7 @@ class Sim:
         ``max_force`` (N) bounds the force the constraint may apply.
         """
         parent_id, child_id = self.body_id(parent), self.body_id(child)
+        self._physical_link(parent, parent_link)
         if parent_link == -1:
             parent_pos, parent_quat = self._p.getBasePositionAndOrientation(parent_id)
         else:

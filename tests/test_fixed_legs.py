@@ -31,7 +31,8 @@ def _robots(feet_xy=(0.0, 0.0)):
 
 def test_folded_links_read_as_before(capfd):
     """``merge_fixed_links``: the welded model loads without a word on stdout, lists the same joints, and
-    every frame (folded into another link or kept) sits where the unfolded model has it."""
+    every frame (folded into another link or kept) sits where the unfolded model has it; a folded link
+    cannot be changed or touched on its own (PyBullet would silently ignore it)."""
     sims = [Sim(), Sim()]
     try:
         for sim, merge in zip(sims, (False, True)):
@@ -39,8 +40,8 @@ def test_folded_links_read_as_before(capfd):
         assert "merge" not in capfd.readouterr().out
         assert sims[0].joint_names("robot") == sims[1].joint_names("robot")
         assert [len(sim.joint_names("robot")) for sim in sims] == [33, 33]
-        kept, folded = (sim.link_index("robot", "r_hand") for sim in sims), sims[1].link_index("robot", "r_tcp")
-        assert folded < -1 and next(kept) >= 0
+        folded = sims[1].link_index("robot", "r_tcp")
+        assert folded < -1 <= sims[1].link_index("robot", "r_hand")
         for frame in FRAMES + ("r_foot", "r_thigh", "pelvis"):
             poses = [sim.link_poses("robot", [sim.link_index("robot", frame)]) for sim in sims]
             np.testing.assert_allclose(poses[1][0], poses[0][0], rtol=0, atol=1e-7, err_msg=frame)
@@ -48,6 +49,10 @@ def test_folded_links_read_as_before(capfd):
             assert angle < 1e-6, frame
         with pytest.raises(InvalidInputError, match="no link named"):
             sims[1].link_index("robot", "r_wing")
+        for call in (lambda: sims[1].set_dynamics("robot", folded, lateralFriction=1.0),
+                     lambda: sims[1].aabb("robot", folded), lambda: sims[1].contacts("robot", link_a=folded)):
+            with pytest.raises(InvalidInputError, match="'r_tcp' of body 'robot' is folded into 'r_hand'"):
+                call()
     finally:
         for sim in sims:
             sim.close()

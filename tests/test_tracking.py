@@ -140,7 +140,7 @@ def silhouettes(body, movement):
         yield subtract(body.draw(empty, pose, CAMERA, (220, 180, 150), filled=True))
 
 
-def test_silhouette_term_prefers_the_true_pose_and_is_zero_on_it(models, reach):
+def test_silhouette_term_prefers_the_true_pose_and_is_small_on_it(models, reach):
     """The misfit of the true pose is small (its limbs on the person, the person covered but for the
     mask's fringe); a hand 5 cm off or an elbow 5 cm high leaves part of the person uncovered and puts
     limb points off it."""

@@ -53,11 +53,11 @@ ARM_CAPSULES = (
     Capsule("index_knuckle", "index_tip", 0.009),
     Capsule("wrist", "thumb_tip", 0.0095),
 )
+COVER_MARGIN_PX = 1.0  # px: the denoising blur and the low threshold spread a mask past the outline (validation)
+LIMB_MIN_RADIUS_M = 0.02  # fingers (1 cm) are 1-3 px wide at 320 x 240: a softened mask barely holds them
 # m, points of the trunk placed from the right shoulder marker (measured on the demonstrator at rest and
 # mid-reach, within 1.5 cm): the capsule end below the thorax's top (its cap reaches the top), and the
 # head's axis. The trunk's base is the lumbar joint, which stays put (``torso_base``).
-COVER_MARGIN_PX = 1.0  # px: the denoising blur and the low threshold spread a mask past the outline (1 px chosen on validation)
-LIMB_MIN_RADIUS_M = 0.02  # fingers (1 cm) are 1-3 px wide at 320 x 240: a softened mask barely holds them
 FROM_SHOULDER = {
     "neck": np.array([0.0, 0.227, 0.026 - 0.14]),
     "head_low": np.array([0.01, 0.227, 0.216 - 0.03]),
@@ -106,6 +106,12 @@ class BodyModel:
         self.points_per_side = int(points_per_side)
         self._radius = np.array([c.radius for c in capsules])
         self.hidden_below_z = hidden_below_z
+        trunk_points = {"torso_base", *FROM_SHOULDER}
+        self.trunk = np.array([k for k, c in enumerate(capsules) if {c.start, c.end} <= trunk_points], dtype=int)
+        """Indices of the capsules placed from the trunk alone (torso, head)."""
+        self.limbs = np.setdiff1d(np.flatnonzero(self._radius >= LIMB_MIN_RADIUS_M), self.trunk)
+        """Indices of the capsules that move with the arm and are wide enough (``LIMB_MIN_RADIUS_M``) for
+        their axis to lie surely on the person in a foreground mask."""
 
     @property
     def n_points(self) -> int:
@@ -155,24 +161,11 @@ class BodyModel:
         right = centre - rho * normal[:, :, None]
         caps = np.stack([a - rho_a[..., None] * direction, b + rho_b[..., None] * direction], axis=2)
         pixels = np.concatenate([left, right, caps], axis=2).reshape(n, -1, 2)
-        if not hide:
+        if not hide or self.hidden_below_z is None:
             return pixels
         z_side = z_a[:, :, None] + t[..., 0] * (z_b - z_a)[:, :, None]
         z = np.concatenate([z_side, z_side, np.stack([z_a, z_b], axis=2)], axis=2).reshape(n, -1)
         return self._hide(pixels, z)
-
-    @property
-    def trunk(self) -> np.ndarray:
-        """Indices of the capsules placed from the trunk alone (torso, head)."""
-        points = {"torso_base", *FROM_SHOULDER}
-        return np.array([k for k, c in enumerate(self.capsules) if {c.start, c.end} <= points], dtype=int)
-
-    @property
-    def limbs(self) -> np.ndarray:
-        """Indices of the capsules that move with the arm (not :attr:`trunk`) and are wide enough
-        (``LIMB_MIN_RADIUS_M``) for their axis to lie surely on the person in a foreground mask."""
-        wide = np.flatnonzero(self._radius >= LIMB_MIN_RADIUS_M)
-        return np.setdiff1d(wide, self.trunk)
 
     def interior(self, bodies: ProjectedBodies) -> np.ndarray:
         """Pixels ``(N, L * K, 2)`` along the projected axes of the limbs (:attr:`limbs`): where the body

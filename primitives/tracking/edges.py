@@ -31,15 +31,13 @@ def check_image(image: np.ndarray) -> np.ndarray:
     return arr
 
 
-def as_float_image(image: np.ndarray, keep_colour: bool = False) -> np.ndarray:
-    """A float32 image in [0, 1] from uint8 or float RGB(A) / grey input, checked: grey (H, W), or with
-    ``keep_colour`` the colour channels (H, W, 3) of a colour image."""
+def as_float_image(image: np.ndarray) -> np.ndarray:
+    """A float32 grey image (H, W) in [0, 1] from uint8 or float RGB(A) / grey input, checked."""
     arr = check_image(image)
     scale = np.float32(1.0 / 255.0 if arr.dtype == np.uint8 else 1.0)
-    if arr.ndim == 3 and not keep_colour:  # the channels' mean in one pass (numpy's mean over 3 is slow)
+    if arr.ndim == 3:  # the channels' mean in one pass (numpy's mean over 3 is slow)
         return cv2.transform(np.ascontiguousarray(arr[..., :3], dtype=np.float32), np.full((1, 3), scale / 3.0))
-    arr = arr.astype(np.float32) * scale
-    return np.ascontiguousarray(arr[..., :3]) if arr.ndim == 3 else arr
+    return arr.astype(np.float32) * scale
 
 
 def edge_image(image: np.ndarray, threshold: float = THRESHOLD, blur_sigma_px: float = BLUR_SIGMA_PX) -> np.ndarray:
