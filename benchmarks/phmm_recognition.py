@@ -40,6 +40,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--mean-model", default="linear", choices=("linear", "tps"),
                         help="the class PHMMs' mean model (default: %(default)s)")
     parser.add_argument("--smoothing", type=float, default=1.0, help="ridge on the thin-plate bend (tps)")
+    parser.add_argument("--object-vote", type=float,
+                        help="nats for the class of each piece in discovery's parse of the object estimated from the "
+                             "hand, with the cuts given (default: the models' own; 0: off)")
     return parser.parse_args(argv)
 
 
@@ -58,6 +61,8 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"learned {learned.report()}")
     else:
         models = ActionModels.load(args.models)
+    if args.object_vote is not None:
+        models.set_params(object_vote=args.object_vote)
     per_recording = {}
     for seed, path in zip(args.test_seeds, tests):
         result = recognize_recording(models, load_demonstrations(path), jobs=args.jobs, oracle=args.oracle,

@@ -34,7 +34,13 @@ held-out seed 3; figures in ``benchmarks/results/NOTES.md``):
 - **Decoding pieces** (the cuts known): the strict grammar of the transitions seen in training; a
   piece shorter than a class's chain costs that class ``unexplained_penalty`` nats instead of ruling
   it out; neighbouring manipulation pieces must agree on the object's location at their cut
-  (``continuity_weight`` nats per m^2 of gap, :mod:`~hoap_actions.primitives.effect_continuity`).
+  (``continuity_weight`` nats per m^2 of gap, :mod:`~hoap_actions.primitives.effect_continuity`);
+  then the object's trajectory is estimated from the hand between the first and the last piece
+  decoded as a manipulation (:mod:`~hoap_actions.primitives.object_estimate`), discovery parses it
+  as it parses a real one, and each piece's class in that parse gets ``object_vote`` nats before the
+  grammar decodes again. Discovery's classes are what the object did, and neighbouring classes
+  differ by a centimetre of object motion that the arm's displacements hardly show (the lifts that
+  start carries, 18 against 44): 95.7 -> 97.8 % on validation recordings 20 and 21.
 - **Decoding a whole movement** (:meth:`ActionModels.decode`, from the markers alone): connected
   recognition over the classes' chains (:mod:`~hoap_actions.primitives.connected_recognition`) on
   the displacement features only: over the training effects a state's positions spread across the
@@ -65,7 +71,7 @@ from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.actions import action_level
 from hoap_actions.primitives.connected_recognition import ChainedHMM, chain_classes, exit_probability
-from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN, PrimitiveDiscovery
 from hoap_actions.primitives.discovery_groups import action_groups
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models_directory import (
@@ -79,6 +85,7 @@ from hoap_actions.primitives.models_directory import (
     read_manifest,
 )
 from hoap_actions.primitives.effect_continuity import effect_gap_scores
+from hoap_actions.primitives.object_estimate import HAND_FRAME_MARKERS, fit_grasp_offset, object_poses
 from hoap_actions.primitives.grammar import ActionGrammar
 from hoap_actions.primitives.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
 
@@ -159,6 +166,9 @@ class ActionModels(Estimator):
         unexplained_penalty: nats a class pays for a piece shorter than its chain (``None``: ruled out).
         continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
         stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
+        object_vote: nats :meth:`decode_segments` gives each piece's class in discovery's parse of the
+            object trajectory estimated from the hand (0: off; models learned without object poses
+            have no grasp offset and cannot vote).
         mean_model, smoothing: how each PHMM's state means depend on phi (see :class:`ParametricHMM`).
         speed_augmentation: time-stretch factors (in [0.5, 2]); every class's training movement is also
             fitted as if performed that many times as long (resampled in time), so that the chains accept a
@@ -169,14 +179,15 @@ class ActionModels(Estimator):
     (dict id -> :class:`ClassModel` of a whole action), ``action_lifts_`` (dict id -> the highest
     lift, m, of the object in its runs) and ``action_of_class_`` (dict class id -> the whole action
     its pieces belong to), all empty without it; ``demonstrators_``, the profiles of who demonstrated
-    (empty: not known).
+    (empty: not known); ``grasp_offset_`` (3,), the object's centre in the hand's frame while the hand
+    moves it (m; ``None`` when learned without object poses).
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
-                "action_lifts_", "action_of_class_", "demonstrators_")
+                "action_lifts_", "action_of_class_", "demonstrators_", "grasp_offset_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
-    _readable_versions = (1, FORMAT_VERSION)
+    _readable_versions = (1, 2, FORMAT_VERSION)
 
     def __init__(
         self,
@@ -195,6 +206,7 @@ class ActionModels(Estimator):
         mean_model: str = "linear",
         smoothing: float = 1.0,
         speed_augmentation: tuple[float, ...] = (),
+        object_vote: float = 1000.0,
     ) -> None:
         self.covariance_type = covariance_type
         self.reg_covar = reg_covar
@@ -211,6 +223,7 @@ class ActionModels(Estimator):
         self.mean_model = mean_model
         self.smoothing = smoothing
         self.speed_augmentation = speed_augmentation
+        self.object_vote = object_vote
 
     def _check_params(self) -> None:
         def number(name: str, low: float, high: float = math.inf, low_open: bool = False) -> None:
@@ -230,6 +243,7 @@ class ActionModels(Estimator):
         number("continuity_weight", 0.0)
         number("stay_weight", 0.0, low_open=True)
         number("smoothing", 0.0)
+        number("object_vote", 0.0)
         if self.mean_model not in ("linear", "tps"):
             raise InvalidInputError(f"mean_model must be 'linear' or 'tps'; got {self.mean_model!r}")
         if self.unexplained_penalty is not None:
@@ -245,6 +259,26 @@ class ActionModels(Estimator):
                                     f"got {factors!r}")
         if not isinstance(self.velocity, bool):
             raise InvalidInputError(f"velocity must be True or False; got {self.velocity!r}")
+
+    DECODING_PARAMS = ("n_restarts", "n_candidates", "unexplained_penalty", "continuity_weight", "stay_weight",
+                       "object_vote")
+    """Hyper-parameters that only recognition reads: fitted models take new values of these without a refit."""
+
+    def set_params(self, **params: object) -> ActionModels:
+        """Set :data:`DECODING_PARAMS` (validated; the others need a new fit) and return ``self``."""
+        unknown = sorted(set(params) - set(self.DECODING_PARAMS))
+        if unknown:
+            raise InvalidInputError(f"set_params takes the decoding parameters {list(self.DECODING_PARAMS)}; got "
+                                    f"{unknown} (fit new models to change the others)")
+        previous = self.get_params()
+        self.__dict__.update(params)
+        try:
+            self._check_params()
+        except InvalidInputError:
+            self.__dict__.update(previous)
+            raise
+        self._chained = None  # stay_weight shapes the chained HMM
+        return self
 
     # ------------------------------------------------------------------------------------- fit
     def fit(
@@ -309,7 +343,26 @@ class ActionModels(Estimator):
         self.demonstrators_ = _unique_profiles(demonstrators)
         self.actions_, self.action_lifts_, self.action_of_class_ = (
             ({}, {}, {}) if O is None else self._fit_actions(inputs, O, lengths))
+        self.grasp_offset_ = None if O is None else self._fit_grasp_offset(hands, O, lengths)
         return self
+
+    def _fit_grasp_offset(self, hands: list[np.ndarray], O: np.ndarray, lengths: Sequence[int]) -> np.ndarray | None:
+        """Where the object sits in the hand's frame over the training manipulations (from the first
+        manipulation piece of a demonstration to its last); ``None`` without the hand's markers."""
+        if not set(HAND_FRAME_MARKERS) <= set(self.marker_names_):
+            return None
+        spans: dict[int, tuple[int, int]] = {}
+        for c in self.discovery_.classes_:
+            if c.kind == MANIPULATION:
+                for s in c.segments:
+                    first, last = spans.get(s.demo, (s.start, s.end))
+                    spans[s.demo] = (min(first, s.start), max(last, s.end))
+        if not spans:
+            return None
+        objects = np.split(np.asarray(O, dtype=float), np.cumsum(lengths)[:-1])
+        shape = (-1, len(self.marker_names_), 3)
+        return fit_grasp_offset([(hands[d][a:b].reshape(shape), objects[d][a:b]) for d, (a, b) in sorted(spans.items())],
+                                self.marker_names_)
 
     def _fit_actions(self, inputs: list[np.ndarray], O: np.ndarray, lengths: Sequence[int]
                      ) -> tuple[dict[int, ClassModel], dict[int, float], dict[int, int]]:
@@ -449,17 +502,44 @@ class ActionModels(Estimator):
         """Recognise the consecutive pieces of one demonstration together, through the grammar.
 
         Each piece is recognised on its own, then the grammar picks the class sequence that best
-        explains all of them (with the unexplained penalty and effect continuity); each returned
-        recognition carries the decoded class and that class's phi. A piece no class explains, or a
-        demonstration the strict grammar cannot parse, keeps its isolated class.
+        explains all of them (with the unexplained penalty and effect continuity); then, with
+        ``object_vote``, the class discovery gives each piece of the object trajectory estimated from
+        the hand adds to that class's score and the grammar decodes again (module docstring). Each
+        returned recognition carries the decoded class and that class's phi. A piece no class
+        explains, or a demonstration the strict grammar cannot parse, keeps its isolated class.
         """
         if isinstance(segments, np.ndarray) or not len(segments):
             raise InvalidInputError("segments must be a non-empty list of movements, one (T, M, 3) array per piece")
         recognitions = [self.recognize(piece) for piece in segments]
-        return self._decode(recognitions)
+        decoded = self._decode(recognitions)
+        votes = self.object_votes(segments, [r.class_id for r in decoded])
+        return decoded if votes is None else self._decode(recognitions, votes)
 
-    def _decode(self, recognitions: list[SegmentRecognition]) -> list[SegmentRecognition]:
+    def object_votes(self, segments: Sequence[np.ndarray], class_ids: Sequence[int]) -> list[int] | None:
+        """Each consecutive piece's class in discovery's parse of the object trajectory estimated from
+        the hand (:mod:`~hoap_actions.primitives.object_estimate`) over the pieces from the first to the
+        last of ``class_ids`` that is a manipulation class; -1 where the parse knows no class. ``None``
+        when the models cannot vote (``object_vote`` 0, no grasp offset) or no piece is a manipulation."""
+        check_is_fitted(self)
+        if self.object_vote == 0 or self.grasp_offset_ is None:
+            return None
+        moving = [i for i, c in enumerate(class_ids) if c in self.classes_ and self.classes_[c].kind == MANIPULATION]
+        if not moving:
+            return None
+        H = np.concatenate([np.asarray(piece, dtype=float).reshape(len(piece), len(self.marker_names_), 3)
+                            for piece in segments])
+        bounds = np.cumsum([0] + [len(piece) for piece in segments])
+        poses = object_poses(H, self.marker_names_, int(bounds[moving[0]]), int(bounds[moving[-1] + 1]),
+                             self.grasp_offset_)
+        labels = self.discovery_.predict(poses, [len(poses)])[0]
+        return [int(np.bincount(labels[a:b] - UNKNOWN).argmax()) + UNKNOWN for a, b in zip(bounds[:-1], bounds[1:])]
+
+    def _decode(self, recognitions: list[SegmentRecognition], votes: Sequence[int] | None = None
+                ) -> list[SegmentRecognition]:
         scores = [dict(r.log_likelihoods) if r.class_id >= 0 else dict.fromkeys(self.classes_, 0.0) for r in recognitions]
+        for piece, vote in zip(scores, votes or ()):
+            if np.isfinite(piece.get(vote, -np.inf)):
+                piece[vote] += self.object_vote
         pairs = None
         if self.continuity_weight > 0 and len(recognitions) > 1:
             pieces = {cid for cid, m in self.classes_.items() if m.kind == MANIPULATION}
@@ -546,6 +626,7 @@ class ActionModels(Estimator):
             "marker_names": list(self.marker_names_),
             "covars_prior": None if self.covars_prior_ is None else self.covars_prior_.tolist(),
             **({"demonstrators": list(self.demonstrators_)} if self.demonstrators_ else {}),
+            "grasp_offset": None if self.grasp_offset_ is None else self.grasp_offset_.tolist(),
             "classes": [
                 {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
                  "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
@@ -594,6 +675,8 @@ class ActionModels(Estimator):
         prior = manifest["covars_prior"]
         models.covars_prior_ = None if prior is None else finite_array(manifest_path, "covars_prior", prior, (width,))
         models.demonstrators_ = _profiles_entry(manifest_path, manifest.get("demonstrators", []))
+        offset = manifest.get("grasp_offset") if version >= 3 else None
+        models.grasp_offset_ = None if offset is None else finite_array(manifest_path, "grasp_offset", offset, (3,))
         models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
         models.grammar_ = ActionGrammar.load(directory / "grammar.json")
         classes = {e["id"]: _entry_model(directory, e, "classes", "class", width) for e in _entries(manifest_path, manifest, "classes")}

@@ -1,12 +1,15 @@
 """The models directory of :class:`~hoap_actions.primitives.action_models.ActionModels`: its files
 and the checks every entry of its manifest gets on load (each error names the file and the entry).
 
-Layout (``format_version`` 2; version 1 directories, which have no action level, still load): ``manifest.json`` (``kind`` "ActionModels", ``format_version``,
+Layout (``format_version`` 3; version 1 directories, which have no action level, and version 2
+ones, which have no grasp offset, still load): ``manifest.json`` (``kind`` "ActionModels", ``format_version``,
 ``params`` the hyper-parameters, ``fps``, ``marker_names``, ``covars_prior`` (D,) or null, and
 ``classes``: per class its ``id``, ``kind``, ``file``, ``effect_centre`` (6,), ``effect_basis``
 (6, r) and ``exit_probability``; and ``actions``, the whole actions of
 :mod:`~hoap_actions.primitives.actions`, the same with ``lift_m``; optionally ``demonstrators``, the
-profiles of who demonstrated, absent from models learned before it was kept), ``discovery.json`` (the fitted
+profiles of who demonstrated, absent from models learned before it was kept; ``grasp_offset``
+(3,) m or null, the object's centre in the hand's frame, :mod:`~hoap_actions.primitives.object_estimate`),
+``discovery.json`` (the fitted
 :class:`~hoap_actions.primitives.discovery.PrimitiveDiscovery`, which also cuts new object
 trajectories), ``grammar.json`` (the :class:`~hoap_actions.primitives.grammar.ActionGrammar`) and
 one ``class_<id>.npz`` (a :class:`~hoap_actions.primitives.parametric_hmm.ParametricHMM`) per class
@@ -25,7 +28,7 @@ from hoap_actions.primitives.json_files import read_json_model
 __all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array", "names",
            "positive", "read_manifest"]
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 KIND = "ActionModels"
 MANIFEST = "manifest.json"
 MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")

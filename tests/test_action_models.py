@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import warnings
@@ -381,3 +382,60 @@ def test_speed_augmented_models_save_and_load(small, tmp_path):
     assert loaded.get_params() == models.get_params() and loaded.speed_augmentation == (0.8, 1.25)
     piece = pieces_of(demos, discovery, 1)[1]
     assert loaded.recognize(piece).class_id == models.recognize(piece).class_id
+
+
+def test_the_object_estimated_from_the_hand_is_parsed_into_each_training_piece_class(small, with_actions):
+    demos, discovery, _, _ = small
+    assert with_actions.grasp_offset_.shape == (3,) and np.all(np.isfinite(with_actions.grasp_offset_))
+    voted = 0
+    for demo, segmentation in enumerate(discovery.segmentations_):
+        truth = [pid for pid, *_ in segmentation]
+        votes = with_actions.object_votes(pieces_of(demos, discovery, demo), truth)
+        if any(with_actions.classes_[c].kind == "manipulation" for c in truth):
+            assert votes == truth
+            voted += 1
+        else:  # nothing moved the object: no vote
+            assert votes is None
+    assert voted == 3  # push, move and rotate
+
+
+def test_the_object_vote_decides_between_look_alike_pieces(small, with_actions):
+    demos, discovery, _, _ = small
+    pieces = pieces_of(demos, discovery, 1)
+    truth = [pid for pid, *_ in discovery.segmentations_[1]]
+    manipulation = truth[1]
+    recognitions = [with_actions.recognize(p) for p in pieces]
+    tied = [dataclasses.replace(r, log_likelihoods={c: 0.0 for c in r.log_likelihoods}) for r in recognitions]
+    votes = with_actions.object_votes(pieces, truth)
+    assert [r.class_id for r in with_actions._decode(tied, votes)] == truth  # the vote breaks the tie
+    other = next(c for c, m in with_actions.classes_.items() if m.kind == "manipulation" and c != manipulation)
+    wrong = [votes[0], other, votes[2]]
+    assert with_actions._decode(tied, wrong)[1].class_id == other
+
+
+def test_models_without_object_poses_or_with_the_vote_off_do_not_vote(small, with_actions):
+    demos, discovery, models, _ = small
+    pieces = pieces_of(demos, discovery, 1)
+    truth = [pid for pid, *_ in discovery.segmentations_[1]]
+    assert models.grasp_offset_ is None and models.object_votes(pieces, truth) is None
+    assert with_actions.object_votes(pieces, truth) is not None
+    try:
+        assert with_actions.set_params(object_vote=0.0).object_votes(pieces, truth) is None
+        with pytest.raises(InvalidInputError, match="object_vote must be a number"):
+            with_actions.set_params(object_vote=-1.0)
+        assert with_actions.object_vote == 0.0  # a refused value leaves the parameters as they were
+        with pytest.raises(InvalidInputError, match="need a new fit|fit new models"):
+            with_actions.set_params(max_states=3)
+    finally:
+        with_actions.set_params(object_vote=ActionModels().object_vote)
+
+
+def test_the_grasp_offset_is_saved_checked_and_absent_from_older_directories(with_actions, tmp_path):
+    path = tmp_path / "models"
+    with_actions.save(path)
+    np.testing.assert_array_equal(ActionModels.load(path).grasp_offset_, with_actions.grasp_offset_)
+    edit_manifest(path, lambda m: m.update(grasp_offset=[0.0, float("nan"), 0.0]))
+    with pytest.raises(DataFileError, match="entry grasp_offset must be"):
+        ActionModels.load(path)
+    edit_manifest(path, lambda m: (m.update(format_version=2), m.pop("grasp_offset")))
+    assert ActionModels.load(path).grasp_offset_ is None
