@@ -6,10 +6,11 @@ one from other demonstrators (cross-demonstrator). Both recognise the same held-
 (:func:`~hoap_actions.primitives.recognition_eval.recognize_recording`); the difference of each figure
 says what a body and way of moving never seen cost.
 
-    python benchmarks/cross_demonstrator.py [--test relaxed:1] [--same relaxed:2 relaxed:3 relaxed:4]
+    python benchmarks/cross_demonstrator.py [--test relaxed:1 [relaxed:11 ...]] [--same relaxed:2 relaxed:3 relaxed:4]
                                             [--cross reference:2 short:2 tall:2] [--jobs 2]
 
-A recording is ``demonstrator:seed`` (``hoap-actions record --preset paper --demonstrator D --seed S``),
+With several ``--test`` recordings (of one demonstrator) each figure and each cost is also reported as
+mean, standard deviation and 95 % t-interval over them. A recording is ``demonstrator:seed`` (``hoap-actions record --preset paper --demonstrator D --seed S``),
 looked for in (and made in) ``--data``. Writes ``results/cross_demonstrator.json``.
 """
 
@@ -20,7 +21,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
 
 FIGURES = ("frame_accuracy", "segment_accuracy", "edit_score", "oracle_cut_accuracy", "phi_error_median_m",
            "oracle_cut_phi_error_median_m")
@@ -38,7 +39,7 @@ def recording(text: str) -> tuple[str, int]:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      parents=[arguments("cross_demonstrator.json", data=True)])
-    parser.add_argument("--test", type=recording, default=("relaxed", 1))
+    parser.add_argument("--test", type=recording, nargs="+", default=[("relaxed", 1)])
     parser.add_argument("--same", type=recording, nargs="+", default=[("relaxed", s) for s in (2, 3, 4)])
     parser.add_argument("--cross", type=recording, nargs="+", default=[("reference", 2), ("short", 2), ("tall", 2)])
     parser.add_argument("--jobs", type=int, default=2, help="worker processes for recording and recognition")
@@ -52,30 +53,43 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.primitives.learning import learn
     from hoap_actions.primitives.recognition_eval import recognize_recording
 
-    for name, seed in [args.test, *args.same, *args.cross]:
+    for name, seed in [*args.test, *args.same, *args.cross]:
         demonstrator_profile(name, seed)  # an unknown demonstrator fails before any recording
-    if args.test[0] in {name for name, _ in args.cross}:
-        raise SystemExit(f"the cross-demonstrator models must not see {args.test[0]!r}")
+    tested = {name for name, _ in args.test}
+    if tested & {name for name, _ in args.cross} or len(tested) > 1:
+        raise SystemExit(f"the tests must be one demonstrator's recordings and the cross-demonstrator models must "
+                         f"not see it; got tests of {sorted(tested)}")
+    if set(args.test) & set(args.same):
+        raise SystemExit("a test recording must not be among the same-demonstrator training recordings")
 
     def path(item: tuple[str, int]) -> Path:
         return ensure_recording("paper", item[1], args.data, workers=args.jobs, demonstrator=item[0])
 
-    test = load_demonstrations(path(args.test))
-    results = {}
+    tests = {f"{d}:{s}": load_demonstrations(path((d, s))) for d, s in args.test}
+    per_test = {test: {} for test in tests}
+    training_of = {}
     for name, training in (("same", args.same), ("cross", args.cross)):
         models, learned = learn([path(item) for item in training])
         print(f"{name}: learned {learned.report()}", flush=True)
-        result = recognize_recording(models, test, jobs=args.jobs)
-        results[name] = {"training": [f"{d}:{s}" for d, s in training], "classes": learned.n_classes,
-                         **{k: result[k] for k in FIGURES}}
-        print(f"{name}: " + ", ".join(f"{k} {result[k]:.4g}" for k in FIGURES), flush=True)
-    difference = {k: results["same"][k] - results["cross"][k] for k in FIGURES}
-    difference["phi_error_median_m"] *= -1  # an error: larger is worse
-    difference["oracle_cut_phi_error_median_m"] *= -1
-    print("cost of a demonstrator never seen: " + ", ".join(f"{k} {v:.4g}" for k, v in difference.items()))
-    document = {"benchmark": "cross_demonstrator", "test": f"{args.test[0]}:{args.test[1]}", "results": results,
-                "same_minus_cross": difference, "goals_at_most": GOALS,
-                "environment": numeric_environment(blas_threads=None)}
+        training_of[name] = {"training": [f"{d}:{s}" for d, s in training], "classes": learned.n_classes}
+        for test, demos in tests.items():
+            result = recognize_recording(models, demos, jobs=args.jobs)
+            per_test[test][name] = {k: result[k] for k in FIGURES}
+            print(f"{test}, {name}: " + ", ".join(f"{k} {result[k]:.4g}" for k in FIGURES), flush=True)
+    for test, results in per_test.items():
+        cost = {k: results["same"][k] - results["cross"][k] for k in FIGURES}
+        cost["phi_error_median_m"] *= -1  # an error: larger is worse
+        cost["oracle_cut_phi_error_median_m"] *= -1
+        results["same_minus_cross"] = cost
+        print(f"{test}, cost of a demonstrator never seen: " + ", ".join(f"{k} {v:.4g}" for k, v in cost.items()))
+    summary = {part: {k: spread([r[part][k] for r in per_test.values()]) for k in FIGURES}
+               for part in ("same", "cross", "same_minus_cross")} if len(per_test) > 1 else None
+    for part, figures in (summary or {}).items():
+        print(f"{part}: " + ", ".join(f"{k} {s['mean']:.4g} [{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]"
+                                      for k, s in figures.items()))
+    document = {"benchmark": "cross_demonstrator", "tests": list(per_test), "models": training_of,
+                "per_test": per_test, "summary": summary, "goals_at_most": GOALS,
+                "params": models.get_params(), "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
     return document
 
