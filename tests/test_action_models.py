@@ -15,6 +15,7 @@ from hoap_actions.errors import DataExistsError, DataFileError, ExtrapolationWar
 from hoap_actions.primitives.action_models import ActionModels, marker_features
 from hoap_actions.primitives.datasets import load_demonstrations
 from hoap_actions.primitives.discovery import PrimitiveDiscovery
+from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models_directory import MANIFEST
 
 
@@ -439,3 +440,18 @@ def test_the_grasp_offset_is_saved_checked_and_absent_from_older_directories(wit
         ActionModels.load(path)
     edit_manifest(path, lambda m: (m.update(format_version=2), m.pop("grasp_offset")))
     assert ActionModels.load(path).grasp_offset_ is None
+
+
+def test_the_object_parse_of_a_whole_movement_follows_the_objects_own_classes(small, with_actions):
+    demos, discovery, _, _ = small
+    truth = discovery.predict(np.concatenate([e.O for e in demos]), [e.T for e in demos])
+    for demo, labels in zip(demos, truth):
+        parse = with_actions.object_parse(demo.H, labels)
+        if not any(with_actions.classes_[c].kind == "manipulation" for c in set(labels.tolist()) - {-1}):
+            assert parse is None
+            continue
+        assert parse.shape == labels.shape and np.mean(parse == labels) > 0.95
+        decoded = with_actions.decode(demo.H)
+        assert [s.class_id for s in decoded] == [c for c, *_ in runs(labels) if c != -1]
+        voted = np.concatenate([np.full(s.end - s.start, s.class_id) for s in decoded])
+        assert np.mean(voted == labels[decoded[0].start:decoded[-1].end]) > 0.95
