@@ -523,7 +523,7 @@ class ActionModels(Estimator):
     def object_votes(self, segments: Sequence[np.ndarray], class_ids: Sequence[int]) -> list[int] | None:
         """Each consecutive piece's class (its frames' majority) in :meth:`object_parse` of the pieces'
         markers, the manipulation being the pieces from the first to the last of ``class_ids`` that is a
-        manipulation class; -1 where the parse knows no class; ``None`` where :meth:`object_parse` is."""
+        manipulation class; -1 where the parse knows no class; ``None`` when :meth:`object_parse` gives none."""
         lengths = [len(piece) for piece in segments]
         H = np.concatenate([np.asarray(piece, dtype=float).reshape(len(piece), -1) for piece in segments])
         labels = self.object_parse(H, np.repeat(np.asarray(class_ids, dtype=int), lengths))
@@ -600,8 +600,8 @@ class ActionModels(Estimator):
         ids = chained.class_ids
         parse = self.object_parse(X[:, : 3 * len(self.marker_names_)], ids[labels])
         if parse is not None:  # each frame's class in the parse gets object_vote nats, and Viterbi runs again
-            index = np.searchsorted(ids, parse).clip(0, len(ids) - 1)
-            voted = (ids[index] == parse)[:, None] & (chained.state_class[None, :] == index[:, None])
+            parsed = np.searchsorted(ids, parse).clip(0, len(ids) - 1)  # ids are sorted
+            voted = (ids[parsed] == parse)[:, None] & (chained.state_class[None, :] == parsed[:, None])
             relabelled, score = chained.viterbi(log_emissions + self.object_vote * voted)
             labels = relabelled if np.isfinite(score) else labels
         decoded = []
