@@ -10,8 +10,9 @@ says what a body and way of moving never seen cost.
                                             [--cross reference:2 short:2 tall:2] [--jobs 2]
 
 With several ``--test`` recordings (of one demonstrator) each figure and each cost is also reported as
-mean, standard deviation and 95 % t-interval over them. A recording is ``demonstrator:seed`` (``hoap-actions record --preset paper --demonstrator D --seed S``),
-looked for in (and made in) ``--data``. Writes ``results/cross_demonstrator.json``.
+mean, standard deviation and 95 % t-interval over them. A recording is ``demonstrator:seed``
+(``hoap-actions record --preset paper --demonstrator D --seed S``), looked for in (and made in)
+``--data``. Writes ``results/cross_demonstrator.json``.
 """
 
 from __future__ import annotations
