@@ -41,8 +41,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="the class PHMMs' mean model (default: %(default)s)")
     parser.add_argument("--smoothing", type=float, default=1.0, help="ridge on the thin-plate bend (tps)")
     parser.add_argument("--object-vote", type=float,
-                        help="nats for the class of each piece in discovery's parse of the object estimated from the "
-                             "hand, with the cuts given (default: the models' own; 0: off)")
+                        help="nats for the class of each piece (cuts given) or frame (markers alone) in discovery's "
+                             "parse of the object path estimated from the hand (default: the models' own; 0: off)")
     return parser.parse_args(argv)
 
 

@@ -282,7 +282,8 @@ class ActionModels(Estimator):
         except InvalidInputError:
             self.__dict__.update(previous)
             raise
-        self._chained = None  # stay_weight shapes the chained HMM
+        if "stay_weight" in params:
+            self._chained = None  # the chained HMM is built with it
         return self
 
     # ------------------------------------------------------------------------------------- fit

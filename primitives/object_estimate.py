@@ -35,6 +35,9 @@ def hand_frames(H: np.ndarray, marker_names: Sequence[str]) -> tuple[np.ndarray,
                                 f"{missing} are not among {list(marker_names)}")
     if H.ndim != 3 or H.shape[1:] != (len(marker_names), 3):
         raise InvalidInputError(f"markers must be (T, {len(marker_names)}, 3); got shape {H.shape}")
+    if not np.all(np.isfinite(H)):
+        raise InvalidInputError("markers must be finite (no NaN or inf); bridge occlusion gaps first with "
+                                "hoap_actions.primitives.mocap_cleaning.fill_gaps")
     wrist, knuckle, thumb = (H[:, list(marker_names).index(m)] for m in HAND_FRAME_MARKERS)
     x = knuckle - wrist
     y = thumb - wrist
@@ -69,8 +72,11 @@ def object_poses(H: np.ndarray, marker_names: Sequence[str], start: int, end: in
     if not (0 <= start < end <= T):
         raise InvalidInputError(f"the manipulation frames [start, end) must lie within the {T} frames with "
                                 f"start < end; got [{start}, {end})")
+    offset = np.asarray(offset, dtype=float)
+    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise InvalidInputError(f"offset must be 3 finite numbers (m, in the hand's frame); got {offset!r}")
     rotation, origin = hand_frames(H, marker_names)
-    position = origin + np.einsum("tij,j->ti", rotation, np.asarray(offset, dtype=float))
+    position = origin + np.einsum("tij,j->ti", rotation, offset)
     turned = (Rotation.from_matrix(rotation[start:end]) * Rotation.from_matrix(rotation[start]).inv()).as_rotvec()
     poses = np.zeros((T, 6))
     poses[:start, :3] = position[start]

@@ -427,8 +427,12 @@ def test_models_without_object_poses_or_with_the_vote_off_do_not_vote(small, wit
         assert with_actions.object_vote == 0.0  # a refused value leaves the parameters as they were
         with pytest.raises(InvalidInputError, match="need a new fit|fit new models"):
             with_actions.set_params(max_states=3)
+        chained = with_actions.chained()
+        assert with_actions.set_params(object_vote=500.0).chained() is chained  # not shaped by the vote
+        rebuilt = with_actions.set_params(stay_weight=1.0).chained()
+        np.testing.assert_allclose(rebuilt.log_stay, chained.log_stay / ActionModels().stay_weight)
     finally:
-        with_actions.set_params(object_vote=ActionModels().object_vote)
+        with_actions.set_params(object_vote=ActionModels().object_vote, stay_weight=ActionModels().stay_weight)
 
 
 def test_the_grasp_offset_is_saved_checked_and_absent_from_older_directories(with_actions, tmp_path):

@@ -54,10 +54,13 @@ def test_the_estimated_object_follows_the_hand_and_rests_outside_the_manipulatio
     (lambda H: hand_frames(H, NAMES[:5] + ("thumb",)), "thumb_tip"),
     (lambda H: hand_frames(H[:, :5], NAMES), r"\(T, 6, 3\)"),
     (lambda H: hand_frames(np.zeros_like(H), NAMES), "span no hand frame"),
+    (lambda H: hand_frames(np.where(np.arange(len(H))[:, None, None] == 7, np.nan, H), NAMES), "finite"),
+    (lambda H: object_poses(H, NAMES, 0, 10, [0.1, np.nan, 0.0]), "offset must be 3 finite"),
+    (lambda H: object_poses(H, NAMES, 0, 10, [0.1, 0.0]), "offset must be 3 finite"),
     (lambda H: object_poses(H, NAMES, 50, 50, OFFSET), "start < end"),
     (lambda H: object_poses(H, NAMES, 0, len(H) + 1, OFFSET), "within the 120 frames"),
     (lambda H: fit_grasp_offset([], NAMES), "no manipulation frames"),
-], ids=["marker-missing", "wrong-shape", "degenerate-hand", "empty-span", "span-too-long", "no-frames"])
+], ids=["marker-missing", "wrong-shape", "degenerate-hand", "nan-marker", "nan-offset", "short-offset", "empty-span", "span-too-long", "no-frames"])
 def test_bad_input_is_refused_with_what_is_accepted(call, message):
     with pytest.raises(InvalidInputError, match=message):
         call(carried()[0])
