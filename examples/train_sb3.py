@@ -18,7 +18,9 @@ figure names fresh seeds declared before its run (``benchmarks/results/NOTES.md`
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -26,8 +28,11 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
+from hoap_actions.errors import HoapActionsError
+from hoap_actions.outputs import claimed_file
 
 VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
+CONTROL_MODE = "ee_delta"
 
 
 def evaluate(model, env_id: str, control_mode: str, seeds: range, normalize=lambda obs: obs) -> dict:
@@ -54,22 +59,41 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-first-seed", type=int, default=VALIDATION_FIRST_SEED)
     parser.add_argument("--eval-episodes", type=int, default=50)
-    parser.add_argument("--json", type=Path)
+    parser.add_argument("--json", type=Path, help="write the learning curve here (claimed before training; "
+                        "an existing file is refused unless --overwrite)")
+    parser.add_argument("--overwrite", action="store_true")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
     try:
-        from stable_baselines3 import SAC, HerReplayBuffer
-        from stable_baselines3.common.env_util import make_vec_env
-        from stable_baselines3.common.vec_env import VecNormalize
+        import stable_baselines3  # noqa: F401
     except ImportError:
         raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
 
     if args.steps < 1 or args.eval_every < 1 or args.eval_episodes < 1 or args.eval_first_seed < 0:
         raise SystemExit("--steps, --eval-every and --eval-episodes must be >= 1 and --eval-first-seed >= 0")
     eval_seeds = range(args.eval_first_seed, args.eval_first_seed + args.eval_episodes)
-    control_mode = "ee_delta"
-    venv = make_vec_env(args.env, n_envs=1, seed=args.seed, env_kwargs={"control_mode": control_mode})
+    with contextlib.ExitStack() as claims:
+        try:
+            partial = claims.enter_context(claimed_file(args.json, args.overwrite, "learning curve")) if args.json else None
+        except HoapActionsError as error:
+            print(f"error: {error}", file=sys.stderr)
+            raise SystemExit(2) from None
+        curve = train(args, eval_seeds)
+        if partial is not None:
+            partial.write_text(json.dumps({"env": args.env, "control_mode": CONTROL_MODE, "algorithm": "SAC + HER",
+                                           "normalize": args.normalize, "seed": args.seed,
+                                           "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve},
+                                          indent=2))
+
+
+def train(args: argparse.Namespace, eval_seeds: range) -> list[dict]:
+    """Train with an evaluation every ``--eval-every`` steps; the learning curve."""
+    from stable_baselines3 import SAC, HerReplayBuffer
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    venv = make_vec_env(args.env, n_envs=1, seed=args.seed, env_kwargs={"control_mode": CONTROL_MODE})
     normalize = lambda obs: obs  # noqa: E731
     if args.normalize:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
@@ -85,18 +109,14 @@ def main() -> None:
     for _ in range(0, args.steps, args.eval_every):
         model.learn(args.eval_every, reset_num_timesteps=False)
         point = {"steps": int(model.num_timesteps), "train_wall_s": time.perf_counter() - start,
-                 **evaluate(model, args.env, control_mode, eval_seeds, normalize)}
+                 **evaluate(model, args.env, CONTROL_MODE, eval_seeds, normalize)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
         print(f"{point['steps']:6d} steps, {point['train_wall_s'] / 60:5.1f} min: success {point['success_rate']:.0%} "
               f"on {point['episodes']} layouts, falls {point['falls']}", flush=True)
     venv.close()
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"env": args.env, "control_mode": control_mode, "algorithm": "SAC + HER",
-                                         "normalize": args.normalize,
-                                         "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve}, indent=2))
+    return curve
 
 
 if __name__ == "__main__":

@@ -47,6 +47,14 @@ def test_reach_task_fields():
         obs, _ = env.reset(seed=1)
         fields = env.get_wrapper_attr("parse_observation")(obs)
         np.testing.assert_allclose(fields["target"], obs["desired_goal"], atol=1e-6)
+        scene = env.unwrapped.task.scene  # the obstacles a reach must go around are in the observation
+        np.testing.assert_allclose(fields["peg_positions"], [scene.peg_pose(i)[0] for i in range(scene.n_pegs)],
+                                   atol=1e-6)
+        np.testing.assert_allclose(fields["hole_positions"], scene.hole_positions(), atol=1e-6)
+        np.testing.assert_allclose(np.linalg.norm(fields["peg_quaternions"], axis=1), 1.0, atol=1e-6)
+        other, _ = env.reset(seed=2)
+        assert not np.allclose(env.get_wrapper_attr("parse_observation")(other)["peg_positions"],
+                               fields["peg_positions"])
     finally:
         env.close()
 

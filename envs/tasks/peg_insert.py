@@ -45,23 +45,18 @@ class PegInsertTask(Task):
         self._hole_bottom = self.scene.hole_positions()[self.hole] * np.array([1.0, 1.0, 0.0])
 
     def observation(self) -> np.ndarray:
-        poses = [np.concatenate(self.scene.peg_pose(i)) for i in range(self.scene.n_pegs)]
         target_peg = np.eye(self.scene.n_pegs)[self.peg]
         target_hole = np.eye(scene_module.N_HOLES)[self.hole]
-        return np.concatenate([*poses, self.scene.hole_positions().ravel(), target_peg, target_hole])
+        return np.concatenate([self.scene_observation(), target_peg, target_hole])
 
     def parse_observation(self, part: np.ndarray) -> dict[str, np.ndarray | int]:
         """``peg_positions`` (n_pegs, 3), ``peg_quaternions`` (n_pegs, 4), ``hole_positions``
         (N_HOLES, 3), and the indices ``target_peg`` and ``target_hole`` of the one-hots."""
-        n, k = self.scene.n_pegs, 7 * self.scene.n_pegs
-        poses = part[:k].reshape(n, 7)
-        holes_end = k + 3 * scene_module.N_HOLES
+        n, end = self.scene.n_pegs, self.scene_observation_size()
         return {
-            "peg_positions": poses[:, :3].copy(),
-            "peg_quaternions": poses[:, 3:].copy(),
-            "hole_positions": part[k:holes_end].reshape(scene_module.N_HOLES, 3).copy(),
-            "target_peg": int(np.argmax(part[holes_end: holes_end + n])),
-            "target_hole": int(np.argmax(part[holes_end + n:])),
+            **self.parse_scene_observation(part),
+            "target_peg": int(np.argmax(part[end: end + n])),
+            "target_hole": int(np.argmax(part[end + n:])),
         }
 
     def achieved_goal(self) -> np.ndarray:

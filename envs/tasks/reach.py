@@ -15,8 +15,9 @@ DISTANCE_THRESHOLD = 0.01  # m
 class ReachTask(Task):
     """Targets are drawn in the work area, 3-10 cm above the table; pegs and board stand as obstacles.
 
-    Task observation: the target position (3, m). achieved_goal: r_tcp position; desired_goal: the
-    target. Success: within 1 cm.
+    Task observation (float, m): the target position (3), then the pegs and holes
+    (:meth:`~hoap_actions.envs.tasks.base.Task.scene_observation`: the obstacles move with every layout).
+    achieved_goal: r_tcp position; desired_goal: the target. Success: within 1 cm.
     """
 
     episode_steps = 150
@@ -27,11 +28,12 @@ class ReachTask(Task):
         self._target = np.array([xy[0], xy[1], rng.uniform(*TARGET_HEIGHT)])
 
     def observation(self) -> np.ndarray:
-        return self._target.copy()
+        return np.concatenate([self._target, self.scene_observation()])
 
     def parse_observation(self, part: np.ndarray) -> dict[str, np.ndarray | int]:
-        """``target`` (3, m)."""
-        return {"target": part.copy()}
+        """``target`` (3, m), ``peg_positions`` (n_pegs, 3), ``peg_quaternions`` (n_pegs, 4),
+        ``hole_positions`` (N_HOLES, 3)."""
+        return {"target": part[:3].copy(), **self.parse_scene_observation(part[3:])}
 
     def achieved_goal(self) -> np.ndarray:
         return self.robot.frame_pose("r_tcp")[0]
