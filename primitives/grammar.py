@@ -143,6 +143,7 @@ class ActionGrammar(Estimator):
     def decode(self, segment_scores: Sequence[Mapping[Symbol, float]],
                unexplained_penalty: float | None = None,
                pair_scores: Sequence[Mapping[tuple[Symbol, Symbol], float]] | None = None,
+               bonus: Sequence[Mapping[Symbol, float]] | None = None,
                ) -> tuple[list[Symbol], float]:
         """Most probable class sequence for consecutive segments, given each segment's class log-likelihoods.
 
@@ -163,6 +164,10 @@ class ActionGrammar(Estimator):
         finite or -inf; missing pairs add 0) is added when segment ``i`` is ``a`` and segment ``i + 1``
         is ``b``, e.g. whether the effects the two classes estimate for the two segments join up
         (:func:`hoap_actions.primitives.effect_continuity.effect_gap_scores`).
+
+        ``bonus`` (one mapping per segment, finite nats) is evidence that does not come from a class's
+        model explaining the segment, e.g. the class the object's path gives it: it is added after
+        the unexplained penalty, so it also reaches a class whose model cannot explain the segment.
         """
         check_is_fitted(self)
         if isinstance(segment_scores, Mapping) or not len(segment_scores):
@@ -187,6 +192,8 @@ class ActionGrammar(Estimator):
             best = log_frame.max(axis=1)  # scores are finite or -inf (checked above)
             floor = np.where(np.isfinite(best), best, 0.0) - penalty
             log_frame = np.where(np.isfinite(log_frame), log_frame, floor[:, None])
+        if bonus is not None:
+            log_frame = log_frame + self._bonus_matrix(bonus, len(log_frame))
         with np.errstate(divide="ignore"):
             log_t = np.log(self.transmat_)
         steps = np.broadcast_to(log_t[1 : n + 1, 1 : n + 1], (len(log_frame) - 1, n, n))
@@ -198,6 +205,19 @@ class ActionGrammar(Estimator):
                                     "finite segment scores; fit the grammar with smoothing > 0 to allow unseen "
                                     "transitions")
         return [self.symbols_[k] for k in path], best
+
+    def _bonus_matrix(self, bonus: Sequence[Mapping[Symbol, float]], n_segments: int) -> np.ndarray:
+        if isinstance(bonus, Mapping) or len(bonus) != n_segments:
+            raise InvalidInputError(f"bonus must be a list of {n_segments} {{class: nats}} mappings, one per segment")
+        index = {symbol: k for k, symbol in enumerate(self.symbols_)}
+        matrix = np.zeros((n_segments, len(self.symbols_)))
+        for i, extra in enumerate(bonus):
+            for symbol, value in extra.items():
+                if not np.isfinite(value):
+                    raise InvalidInputError(f"bonus[{i}][{symbol!r}] is {value}; a bonus must be a finite number of nats")
+                if symbol in index:
+                    matrix[i, index[symbol]] += float(value)
+        return matrix
 
     def _pair_matrices(self, pair_scores: Sequence[Mapping[tuple[Symbol, Symbol], float]], n_segments: int
                        ) -> np.ndarray:

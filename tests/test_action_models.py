@@ -414,6 +414,24 @@ def test_the_object_vote_decides_between_look_alike_pieces(small, with_actions):
     assert with_actions._decode(tied, wrong)[1].class_id == other
 
 
+def test_the_vote_reaches_a_class_whose_chain_is_longer_than_the_piece(small, with_actions):
+    demos, discovery, _, _ = small
+    pieces = pieces_of(demos, discovery, 1)
+    truth = [pid for pid, *_ in discovery.segmentations_[1]]
+    manipulation = truth[1]
+    recognitions = [with_actions.recognize(p) for p in pieces]
+    # the piece as a brisker demonstrator's: too short for its class's chain (-inf), another class explains it
+    other = next(c for c, m in with_actions.classes_.items() if m.kind == "manipulation" and c != manipulation)
+    scores = {c: -np.inf for c in recognitions[1].log_likelihoods} | {other: 0.0}
+    recognitions[1] = dataclasses.replace(recognitions[1], log_likelihoods=scores)
+    assert with_actions._decode(recognitions)[1].class_id == other
+    try:  # a vote worth more than the penalty: the voted class wins although its chain cannot explain the piece
+        with_actions.set_params(object_vote=2 * with_actions.unexplained_penalty)
+        assert with_actions._decode(recognitions, truth)[1].class_id == manipulation
+    finally:
+        with_actions.set_params(object_vote=ActionModels().object_vote)
+
+
 def test_models_without_object_poses_or_with_the_vote_off_do_not_vote(small, with_actions):
     demos, discovery, models, _ = small
     pieces = pieces_of(demos, discovery, 1)

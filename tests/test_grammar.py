@@ -269,6 +269,25 @@ def test_decode_unexplained_penalty_keeps_the_grammatical_path_through_an_unexpl
     assert grammar.decode(scores, unexplained_penalty=1e4)[1] == pytest.approx(total - (1e4 - 10.0))
 
 
+def test_decode_bonus_is_added_after_the_unexplained_penalty():
+    grammar = ActionGrammar(smoothing=0.1).fit(PIECES + [["approach", "move", "remove"]])
+    scores = [{"approach": 0.0}, {"push-1": -5.0, "move": -2.0}, {"remove": 0.0}]
+    assert grammar.decode(scores)[0][1] == "move"
+    # evidence for push-1 beyond its model's score: 10 nats outweigh the 3 it lost by
+    decoded, total = grammar.decode(scores, bonus=[{}, {"push-1": 10.0}, {}])
+    assert decoded[1] == "push-1"
+    assert total == pytest.approx(grammar.log_probability(decoded) - 5.0 + 10.0)
+    # a class whose model cannot explain the segment (-inf) gets the penalty's floor, then the bonus
+    short = [{"approach": 0.0}, {"push-1": -np.inf, "move": -2.0}, {"remove": 0.0}]
+    decoded, total = grammar.decode(short, unexplained_penalty=20.0, bonus=[{}, {"push-1": 30.0}, {}])
+    assert decoded[1] == "push-1"
+    assert total == pytest.approx(grammar.log_probability(decoded) - 2.0 - 20.0 + 30.0)
+    assert grammar.decode(short, unexplained_penalty=20.0, bonus=[{}, {"push-1": 10.0}, {}])[0][1] == "move"
+    for bad in ([{}], [{}, {"move": np.nan}, {}], {"move": 1.0}):
+        with pytest.raises(InvalidInputError, match="bonus"):
+            grammar.decode(scores, bonus=bad)
+
+
 def test_decode_unexplained_penalty_prefers_explained_paths_and_lets_the_grammar_label_blank_segments():
     grammar = ActionGrammar().fit(PIECES)
     # the middle segment is explained by no class at all: the grammar alone labels it
