@@ -553,7 +553,7 @@ class ActionModels(Estimator):
 
     def _decode(self, recognitions: list[SegmentRecognition], votes: Sequence[int] | None = None
                 ) -> list[SegmentRecognition]:
-        scores = [dict(r.log_likelihoods) if r.class_id >= 0 else dict.fromkeys(self.classes_, 0.0) for r in recognitions]
+        scores = [r.log_likelihoods if r.class_id >= 0 else dict.fromkeys(self.classes_, 0.0) for r in recognitions]
         # after the unexplained penalty: a piece shorter than the voted class's chain (a brisker
         # demonstrator than the training ones) still gets the vote
         bonus = None if votes is None else [{vote: self.object_vote} if vote in self.classes_ else {} for vote in votes]

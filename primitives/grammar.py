@@ -12,6 +12,8 @@ and :meth:`sample` use only those. Smoothing changes probabilities only (:meth:`
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -213,10 +215,14 @@ class ActionGrammar(Estimator):
         matrix = np.zeros((n_segments, len(self.symbols_)))
         for i, extra in enumerate(bonus):
             for symbol, value in extra.items():
-                if not np.isfinite(value):
-                    raise InvalidInputError(f"bonus[{i}][{symbol!r}] is {value}; a bonus must be a finite number of nats")
+                try:
+                    nats = float(value)
+                except (TypeError, ValueError):
+                    nats = math.nan
+                if not math.isfinite(nats):
+                    raise InvalidInputError(f"bonus[{i}][{symbol!r}] is {value!r}; a bonus must be a finite number of nats")
                 if symbol in index:
-                    matrix[i, index[symbol]] += float(value)
+                    matrix[i, index[symbol]] += nats
         return matrix
 
     def _pair_matrices(self, pair_scores: Sequence[Mapping[tuple[Symbol, Symbol], float]], n_segments: int

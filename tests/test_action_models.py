@@ -400,34 +400,34 @@ def test_the_object_estimated_from_the_hand_is_parsed_into_each_training_piece_c
     assert voted == 3  # push, move and rotate
 
 
-def test_the_object_vote_decides_between_look_alike_pieces(small, with_actions):
+def a_manipulation_demo(small, with_actions):
+    """Demonstration 1's pieces (approach, manipulation, remove), their true classes, each piece's
+    recognition, and a manipulation class other than the true one."""
     demos, discovery, _, _ = small
     pieces = pieces_of(demos, discovery, 1)
     truth = [pid for pid, *_ in discovery.segmentations_[1]]
-    manipulation = truth[1]
-    recognitions = [with_actions.recognize(p) for p in pieces]
+    other = next(c for c, m in with_actions.classes_.items() if m.kind == "manipulation" and c != truth[1])
+    return pieces, truth, [with_actions.recognize(p) for p in pieces], other
+
+
+def test_the_object_vote_decides_between_look_alike_pieces(small, with_actions):
+    pieces, truth, recognitions, other = a_manipulation_demo(small, with_actions)
     tied = [dataclasses.replace(r, log_likelihoods={c: 0.0 for c in r.log_likelihoods}) for r in recognitions]
     votes = with_actions.object_votes(pieces, truth)
     assert [r.class_id for r in with_actions._decode(tied, votes)] == truth  # the vote breaks the tie
-    other = next(c for c, m in with_actions.classes_.items() if m.kind == "manipulation" and c != manipulation)
     wrong = [votes[0], other, votes[2]]
     assert with_actions._decode(tied, wrong)[1].class_id == other
 
 
 def test_the_vote_reaches_a_class_whose_chain_is_longer_than_the_piece(small, with_actions):
-    demos, discovery, _, _ = small
-    pieces = pieces_of(demos, discovery, 1)
-    truth = [pid for pid, *_ in discovery.segmentations_[1]]
-    manipulation = truth[1]
-    recognitions = [with_actions.recognize(p) for p in pieces]
+    _, truth, recognitions, other = a_manipulation_demo(small, with_actions)
     # the piece as a brisker demonstrator's: too short for its class's chain (-inf), another class explains it
-    other = next(c for c, m in with_actions.classes_.items() if m.kind == "manipulation" and c != manipulation)
     scores = {c: -np.inf for c in recognitions[1].log_likelihoods} | {other: 0.0}
     recognitions[1] = dataclasses.replace(recognitions[1], log_likelihoods=scores)
     assert with_actions._decode(recognitions)[1].class_id == other
     try:  # a vote worth more than the penalty: the voted class wins although its chain cannot explain the piece
         with_actions.set_params(object_vote=2 * with_actions.unexplained_penalty)
-        assert with_actions._decode(recognitions, truth)[1].class_id == manipulation
+        assert with_actions._decode(recognitions, truth)[1].class_id == truth[1]
     finally:
         with_actions.set_params(object_vote=ActionModels().object_vote)
 

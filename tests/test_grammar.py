@@ -283,7 +283,7 @@ def test_decode_bonus_is_added_after_the_unexplained_penalty():
     assert decoded[1] == "push-1"
     assert total == pytest.approx(grammar.log_probability(decoded) - 2.0 - 20.0 + 30.0)
     assert grammar.decode(short, unexplained_penalty=20.0, bonus=[{}, {"push-1": 10.0}, {}])[0][1] == "move"
-    for bad in ([{}], [{}, {"move": np.nan}, {}], {"move": 1.0}):
+    for bad in ([{}], [{}, {"move": np.nan}, {}], [{}, {"move": "much"}, {}], {"move": 1.0}):
         with pytest.raises(InvalidInputError, match="bonus"):
             grammar.decode(scores, bonus=bad)
 

@@ -64,5 +64,5 @@ class Task(ABC):
         return {
             "peg_positions": poses[:, :3].copy(),
             "peg_quaternions": poses[:, 3:].copy(),
-            "hole_positions": part[k: k + 3 * scene_module.N_HOLES].reshape(scene_module.N_HOLES, 3).copy(),
+            "hole_positions": part[k: self.scene_observation_size()].reshape(scene_module.N_HOLES, 3).copy(),
         }
