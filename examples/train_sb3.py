@@ -63,8 +63,8 @@ def main() -> None:
                         "an existing file is refused unless --overwrite)")
     parser.add_argument("--overwrite", action="store_true")
     parser.add_argument("--torch-threads", type=int, default=1,
-                        help="PyTorch threads (default 1: two runs side by side with 2 threads each on 2 cores "
-                             "took 38 min per 10k steps, with 1 thread each 5 min)")
+                        help="PyTorch threads (default 1: two runs side by side on 2 cores with PyTorch's default "
+                             "threads oversubscribe the cores, benchmarks/results/NOTES.md)")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
