@@ -180,11 +180,21 @@ def _record(args: argparse.Namespace) -> int:
     return 0
 
 
+def _merging_argument(parser: argparse.ArgumentParser) -> None:
+    from hoap_actions.primitives.discovery import MERGINGS
+
+    parser.add_argument("--merging", choices=MERGINGS,
+                        help="how pieces merge into states: agglomerative (all at once, closest first: the result does "
+                             "not depend on the demonstrations' order) or fold (the paper's, in the order given); "
+                             "default: the library's")
+
+
 def _discover(args: argparse.Namespace) -> int:
     from hoap_actions.primitives.discovery_files import discover_to_dir
 
     summary = discover_to_dir(
-        args.demos, args.out, threshold=args.threshold, spacing=args.spacing, overwrite=args.overwrite
+        args.demos, args.out, threshold=args.threshold, spacing=args.spacing, overwrite=args.overwrite,
+        merging=args.merging,
     )
     print(summary.report())
     return 0
@@ -193,7 +203,8 @@ def _discover(args: argparse.Namespace) -> int:
 def _learn(args: argparse.Namespace) -> int:
     from hoap_actions.primitives.learning import learn_to_dir
 
-    summary = learn_to_dir(args.demos, args.out, discovery_dir=args.discovery, overwrite=args.overwrite, progress=True)
+    summary = learn_to_dir(args.demos, args.out, discovery_dir=args.discovery, overwrite=args.overwrite, progress=True,
+                           merging=args.merging)
     print(f"{summary.report()}; wrote {args.out}")
     return 0
 
@@ -333,6 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
     disc.add_argument("--out", type=_path, required=True, help="directory for the model, classes, grammar, figures")
     disc.add_argument("--threshold", type=float, help="state-merge threshold, nats (default: the tuned one)")
     disc.add_argument("--spacing", type=float, help="arc length per Gaussian, m (default: the tuned one)")
+    _merging_argument(disc)
     disc.add_argument("--overwrite", action="store_true", help="replace previous results in --out")
     disc.set_defaults(func=_discover)
 
@@ -342,6 +354,7 @@ def build_parser() -> argparse.ArgumentParser:
     learn.add_argument("--out", type=_path, required=True, help="models directory to write")
     learn.add_argument("--discovery", type=_path,
                        help="a folder the discover command wrote for the same --demos (default: run discovery here)")
+    _merging_argument(learn)
     learn.add_argument("--overwrite", action="store_true", help="replace an existing models directory at --out")
     learn.set_defaults(func=_learn)
 

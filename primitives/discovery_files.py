@@ -109,10 +109,11 @@ def discover_to_dir(
     threshold: float | None = None,
     spacing: float | None = None,
     overwrite: bool = False,
+    merging: str | None = None,
 ) -> Summary:
     """Discover primitives in a demonstrations file and write model, classes, grammar and figures to ``out_dir``.
 
-    ``threshold`` / ``spacing`` default to :class:`PrimitiveDiscovery`'s. The files
+    ``threshold`` / ``spacing`` / ``merging`` default to :class:`PrimitiveDiscovery`'s. The files
     :data:`OUTPUT_FILES` in ``out_dir`` are claimed before the demonstrations are read
     (:func:`hoap_actions.outputs.claimed_files`): when any exists (unless ``overwrite``) or another
     run is writing them, DataExistsError comes at once; other files there are left alone. They are
@@ -121,19 +122,21 @@ def discover_to_dir(
     """
     out_dir = Path(out_dir)
     with claimed_files(out_dir, OUTPUT_FILES, overwrite, what="discovery results") as staging:
-        summary = _discover(Path(demos_path), out_dir, staging, threshold, spacing)
+        summary = _discover(Path(demos_path), out_dir, staging, threshold, spacing, merging)
     logger.info("discovery of %s written to %s", demos_path, out_dir)
     return summary
 
 
 def _discover(
-    demos_path: Path, out_dir: Path, staging: Path, threshold: float | None, spacing: float | None
+    demos_path: Path, out_dir: Path, staging: Path, threshold: float | None, spacing: float | None,
+    merging: str | None,
 ) -> Summary:
     """The work of :func:`discover_to_dir`, writing every output file into ``staging``."""
     demos = clean_demonstrations(load_demonstrations(demos_path))
     if len(demos) == 0:
         raise InvalidInputError(f"{demos_path} holds no demonstrations; discovery needs at least one")
-    params = {k: v for k, v in (("spacing", spacing), ("threshold", threshold)) if v is not None}
+    given = {"spacing": spacing, "threshold": threshold, "merging": merging}
+    params = {name: value for name, value in given.items() if value is not None}
     model = PrimitiveDiscovery(**params)
     X, lengths = np.concatenate([e.O for e in demos]), [e.T for e in demos]
     H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])

@@ -75,11 +75,12 @@ def learn_to_dir(
     discovery_dir: str | os.PathLike | None = None,
     overwrite: bool = False,
     progress: bool = False,
+    merging: str | None = None,
     **params: object,
 ) -> LearnSummary:
     """:func:`learn`, then write the models to the directory ``out_dir``, claimed before anything is read."""
     with claimed_directory(out_dir, overwrite, what="action models") as staging:
-        models, summary = learn(demos_paths, discovery_dir, progress, **params)
+        models, summary = learn(demos_paths, discovery_dir, progress, merging, **params)
         models.write_files(staging)
     logger.info("%s; wrote %s", summary.report(), out_dir)
     return summary
@@ -89,12 +90,15 @@ def learn(
     demos_paths: Sequence[str | os.PathLike],
     discovery_dir: str | os.PathLike | None = None,
     progress: bool = False,
+    merging: str | None = None,
     **params: object,
 ) -> tuple[ActionModels, LearnSummary]:
     """Learn action models from the demonstrations in ``demos_paths``.
 
     ``discovery_dir``: a ``hoap-actions discover`` folder fitted on the same demonstrations (same
-    files, same order), to skip discovery. ``params`` go to :class:`ActionModels`.
+    files, same order), to skip discovery. ``merging``: :class:`PrimitiveDiscovery`'s (its default
+    when ``None``); a ``discovery_dir`` fitted with another one is refused. ``params`` go to
+    :class:`ActionModels`.
     """
     episodes, header, demonstrators = load_training_demonstrations(list(demos_paths))
     lengths = [e.T for e in episodes]
@@ -102,9 +106,12 @@ def learn(
     O = np.concatenate([e.O for e in episodes])
     started = time.perf_counter()
     if discovery_dir is None:
-        discovery = PrimitiveDiscovery().fit(O, lengths, H)
+        discovery = PrimitiveDiscovery(**({} if merging is None else {"merging": merging})).fit(O, lengths, H)
     else:
         discovery = _matching_discovery(Path(discovery_dir), lengths)
+        if merging is not None and discovery.merging != merging:
+            raise InvalidInputError(f"the discovery in {discovery_dir} merged with {discovery.merging!r}, not the "
+                                    f"{merging!r} asked for; give one of them, or a discovery made with {merging!r}")
     discovered = time.perf_counter()
     models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress, O=O,
                                         demonstrators=demonstrators)

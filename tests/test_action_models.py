@@ -226,6 +226,19 @@ def test_learn_command_takes_a_discover_folder_only_of_the_same_demonstrations(s
     assert not (tmp_path / "m2").exists()
 
 
+def test_the_merging_chosen_on_the_command_line_is_the_discovery_s_and_a_mismatch_is_refused(small, tmp_path, capsys):
+    _, _, _, path = small
+    for merging in ("fold", "agglomerative"):
+        assert main(["discover", "--demos", str(path), "--out", str(tmp_path / merging), "--merging", merging]) == 0
+        assert PrimitiveDiscovery.load(tmp_path / merging / "model.json").merging == merging
+    assert main(["learn", "--demos", str(path), "--out", str(tmp_path / "m"), "--discovery", str(tmp_path / "fold"),
+                 "--merging", "agglomerative"]) == 2
+    assert "merged with 'fold', not the 'agglomerative' asked for" in capsys.readouterr().err
+    assert not (tmp_path / "m").exists()
+    assert main(["learn", "--demos", str(path), "--out", str(tmp_path / "m"), "--discovery", str(tmp_path / "fold"),
+                 "--merging", "fold"]) == 0
+
+
 def test_whole_training_movements_are_cut_and_classified_from_the_markers_alone(small):
     """Connected recognition on the training episodes with a manipulation: their class sequences, and
     most frames. (The approach-only episode is one long approach to discovery, whose object never
