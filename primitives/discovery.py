@@ -7,9 +7,10 @@ Action Primitive Classes According to the Effect on Objects" of the 2010 paper (
 
 1. every object trajectory O_i (relative to its initial pose) is cut into pieces of about equal
    arc length (``spacing``); each piece becomes a Gaussian and the trajectory a left-right HMM;
-2. the HMMs are folded, one after the other, into one joint HMM: states whose Kullback-Leibler
-   divergence (eq. 1) is below ``threshold`` are merged with eqs. (2)-(3), omega = 0.5
-   (:mod:`hoap_actions.primitives.gaussians`);
+2. the HMMs are merged into one joint HMM: states whose Kullback-Leibler divergence (eq. 1) is
+   below ``threshold`` are merged with eqs. (2)-(3), omega = 0.5
+   (:mod:`hoap_actions.primitives.gaussians`), closest pair first over all demonstrations at once
+   (the paper folds them in one after the other: ``merging="fold"``);
 3. every trajectory is Viterbi-decoded with the joint HMM (densities from
    :mod:`hoap_actions.primitives.hmm_math`; :mod:`hoap_actions.primitives.sparse_viterbi`, as the
    joint HMM's chains allow few transitions per state);
@@ -49,11 +50,11 @@ Choices the paper leaves open, made here and why:
 * **One-to-one merging.** Among the state pairs below the threshold, each new state merges with at
   most one joint state and vice versa (a linear assignment that merges as many pairs as possible,
   then the closest), so a chain keeps its temporal resolution.
-* **Order** (``merging``). The paper's fold (``"fold"``, the default) depends on the order of the
+* **Order** (``merging``). The paper's fold (``"fold"``) depends on the order of the
   demonstrations: shuffling a ``paper`` recording gave 11 to 13 action groups. ``"agglomerative"``
-  (:mod:`~hoap_actions.primitives.state_clustering`) merges the pieces of all demonstrations at
-  once, closest pair first, and numbers everything in a canonical order (:func:`canonical_order`),
-  so its result does not depend on the order. A lift starts every carry whatever its direction,
+  (the default; :mod:`~hoap_actions.primitives.state_clustering`) merges the pieces of all
+  demonstrations at once, closest pair first, and numbers everything in a canonical order
+  (:func:`canonical_order`), so its result does not depend on the order. A lift starts every carry whatever its direction,
   and in relative coordinates the lifts of different directions are a few millimetres apart; so
   pieces of two motions that head more than 60 degrees apart (:data:`HEADING_COS`) never share a
   state, as they would not in the paper's absolute object coordinates.
@@ -196,8 +197,8 @@ class PrimitiveDiscovery(Estimator):
         of approach and remove; default 2 (the wrist in the paper's shoulder, elbow, wrist, index
         finger, knuckle, thumb order).
     merging:
-        ``"fold"`` (the paper's recursive fold, in the order given) or ``"agglomerative"`` (all pieces
-        at once, independent of the order; module docstring).
+        ``"agglomerative"`` (the default: all pieces at once, independent of the order) or ``"fold"``
+        (the paper's recursive fold, in the order given); module docstring.
     random_state:
         Accepted for the project's estimator contract; the procedure is deterministic and draws nothing.
 
@@ -238,7 +239,7 @@ class PrimitiveDiscovery(Estimator):
         reg_covar: float | None = None,
         rotation_radius: float = 0.05,
         hand_marker: int = 2,
-        merging: str = "fold",
+        merging: str = "agglomerative",
         random_state: int | np.random.Generator | None = None,
     ) -> None:
         self.spacing = spacing
@@ -683,7 +684,8 @@ class PrimitiveDiscovery(Estimator):
     @classmethod
     def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> PrimitiveDiscovery:
         try:
-            model = cls(**document["params"])
+            params = document["params"] if version > 1 else {"merging": "fold", **document["params"]}
+            model = cls(**params)
             model.joint_means_ = np.array(document["joint_means"], float).reshape(-1, OBJECT_DIM)
             model.joint_covars_ = np.array(document["joint_covars"], float).reshape(-1, OBJECT_DIM, OBJECT_DIM)
             model.joint_at_rest_ = np.array(document["joint_at_rest"], bool)

@@ -198,7 +198,8 @@ def test_phi_far_outside_the_demonstrations_warns(small):
     with pytest.warns(ExtrapolationWarning, match=r"final x -?\d\.\d+ m, demonstrated -?\d\.\d+\.\.-?\d\.\d+ m") as caught:
         models.synthesize(approach.primitive_id, far)
     assert len(caught) == 1  # said once, in the full phi's terms
-    above = near + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])  # 20 cm above where every reach ended
+    highest_end = max(segment.phi[5] for segment in approach.segments)
+    above = near + np.array([0.0, 0.0, 0.0, 0.0, 0.0, highest_end + 1.0 - near[5]])  # 1 m above every reach's end
     with pytest.warns(ExtrapolationWarning, match="final z"):
         models.synthesize(approach.primitive_id, above)
 

@@ -35,7 +35,7 @@ def test_get_params_round_trips_through_init(estimator):
 def test_repr_lists_every_hyper_parameter_in_init_order():
     assert repr(ActionGrammar(smoothing=0.25)) == "ActionGrammar(smoothing=0.25)"
     assert repr(PrimitiveDiscovery()) == ("PrimitiveDiscovery(spacing=0.03, threshold=3.0, reg_covar=None, "
-                                          "rotation_radius=0.05, hand_marker=2, merging='fold', random_state=None)")
+                                          "rotation_radius=0.05, hand_marker=2, merging='agglomerative', random_state=None)")
     assert repr(ParametricHMM(n_states=4)).startswith("ParametricHMM(n_states=4, topology='left-right', ")
 
 

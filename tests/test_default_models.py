@@ -19,6 +19,7 @@ from hoap_actions.default_models import (
     sha256,
 )
 from hoap_actions.primitives.action_models import ActionModels
+from hoap_actions.primitives.discovery import PrimitiveDiscovery
 
 
 def test_shipped_files_are_the_ones_the_build_command_recorded():
@@ -31,6 +32,11 @@ def test_shipped_files_are_the_ones_the_build_command_recorded():
     assert shipped == set(provenance["files_sha256"])
     for name, digest in provenance["files_sha256"].items():
         assert sha256(path / name) == digest, f"{name} differs from the file the build command wrote"
+
+
+def test_shipped_models_were_discovered_with_the_library_s_defaults():
+    shipped = PrimitiveDiscovery.load(default_models_path() / "discovery.json")
+    assert shipped.get_params() == PrimitiveDiscovery().get_params()
 
 
 def test_shipped_models_load_and_are_small():
