@@ -7,8 +7,11 @@ Protocol: :mod:`hoap_actions.primitives.grid_synthesis`. For each training grid 
 location per fold) among the linear model and thin-plate splines with the smoothings in ``SMOOTHINGS``;
 the chosen model and the linear one are then fitted to the whole grid and scored on the 5x7 test grid.
 Also: errors per marker, the effect of the number of states (``STATE_SWEEP``), fit and synthesis times.
+``--posture`` adds the chosen model with its shoulder and elbow replaced by a
+:class:`~hoap_actions.primitives.posture.PostureModel` of the training grid's frames (its penalty chosen by
+leaving out one training location at a time).
 
-    python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--data DIR] [--demonstrator NAME]
+    python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--posture] [--data DIR] [--demonstrator NAME]
 
 Seeds: ``approach-grid`` seed 0 is the validation recording (every choice above was made looking at
 it); seeds 1, 2 and 3 were declared held-out before any run (``results/NOTES.md``). Recordings are
@@ -52,6 +55,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
                         help="approach-grid recordings (default: the held-out %(default)s; 0 is validation)")
     parser.add_argument("--diagnose", action="store_true", help="also measure the interpolation limit")
+    parser.add_argument("--posture", action="store_true",
+                        help="also the chosen model with the shoulder and elbow from a posture model of the hand")
     parser.add_argument("--demonstrator", default="reference",
                         help="who demonstrates in the recordings (hoap-actions record --demonstrator; default: %(default)s)")
     return parser.parse_args(argv)
@@ -65,12 +70,12 @@ def label(params: dict) -> str:
     return "linear" if params["mean_model"] == "linear" else f"tps (smoothing {params['smoothing']:g})"
 
 
-def evaluate_recording(path: Path, diagnose: bool) -> tuple[dict, dict]:
+def evaluate_recording(path: Path, diagnose: bool, posture: bool = False) -> tuple[dict, dict]:
     """Every figure of one recording, and the maps (m) to plot."""
     import numpy as np
 
     from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.grid_synthesis import fit_grid_model, grid_data, synthesis_map
+    from hoap_actions.primitives.grid_synthesis import fit_grid_model, fit_grid_posture, grid_data, synthesis_map
     from hoap_actions.primitives.phmm_selection import select_mean_model
 
     data = grid_data(load_demonstrations(path))
@@ -89,23 +94,38 @@ def evaluate_recording(path: Path, diagnose: bool) -> tuple[dict, dict]:
                                                      zip(choice.candidates, choice.errors)},
                                      "chosen": label(choice.best), "wall_s": time.perf_counter() - started}}
         marked = train_locations(data, grid)
-        for name, params in (("linear", {"mean_model": "linear"}), ("chosen", choice.best)):
+        body = None
+        if posture:
+            body, alpha_errors, body_fit_s = fit_grid_posture(data, grid)
+            entry["posture_selection"] = {"cv_error_cm": {str(a): round(e * 100, 4) for a, e in alpha_errors.items()},
+                                          "alpha": body.alpha, "fit_s": body_fit_s}
+        variants = [("linear", {"mean_model": "linear"}, None), ("chosen", choice.best, None)]
+        variants += [("chosen+posture", choice.best, body)] if posture else []
+        for name, params, completion in variants:
             model, fit_s = fit_grid_model(data, grid, n_states=N_STATES, **MODEL, **params)
-            scored = synthesis_map(model, data)
-            entry[name] = {"model": label(params), **scored.summary(data), "fit_s": fit_s,
+            scored = synthesis_map(model, data, completion)
+            model_name = label(params) + (f" + posture (alpha {body.alpha:g})" if completion else "")
+            entry[name] = {"model": model_name, **scored.summary(data), "fit_s": fit_s,
                            "em_iterations": model.monitor_.n_iter}
-            maps[f"{label(params)} on {grid}"] = (scored.errors, marked)
+            maps[f"{model_name} on {grid}"] = (scored.errors, marked)
         entry["states"] = {}
         for n_states in STATE_SWEEP:
-            for name, params in (("linear", {"mean_model": "linear"}), ("chosen", choice.best)):
-                model, _ = fit_grid_model(data, grid, n_states=n_states, **MODEL, **params)
-                entry["states"][f"{name}_{n_states}"] = round(float(synthesis_map(model, data).errors.mean() * 100), 4)
+            model, _ = fit_grid_model(data, grid, n_states=n_states, **MODEL, mean_model="linear")
+            entry["states"][f"linear_{n_states}"] = round(float(synthesis_map(model, data).errors.mean() * 100), 4)
+            model, _ = fit_grid_model(data, grid, n_states=n_states, **MODEL, **choice.best)
+            entry["states"][f"chosen_{n_states}"] = round(float(synthesis_map(model, data).errors.mean() * 100), 4)
+            if posture:
+                entry["states"][f"chosen+posture_{n_states}"] = round(
+                    float(synthesis_map(model, data, body).errors.mean() * 100), 4)
+        headline = "chosen+posture" if posture else "chosen"
         entry["goal_cm"] = GOALS_CM[grid]
-        entry["goal_met"] = bool(entry["chosen"]["mean_cm"] <= GOALS_CM[grid])
+        entry["goal_met"] = bool(entry[headline]["mean_cm"] <= GOALS_CM[grid])
         out[grid] = entry
+        completed = (f", with the posture model {entry['chosen+posture']['mean_cm']:.3f} cm (alpha {body.alpha:g})"
+                     if posture else "")
         print(f"  {grid}: chose {entry['selection']['chosen']}; linear {entry['linear']['mean_cm']:.3f} cm, "
-              f"chosen {entry['chosen']['mean_cm']:.3f} cm (goal {GOALS_CM[grid]}), within the demonstrator's "
-              f"leave-one-out error at {entry['chosen']['locations_within_human_loo']}/35; states "
+              f"chosen {entry['chosen']['mean_cm']:.3f} cm{completed} (goal {GOALS_CM[grid]}), within the "
+              f"demonstrator's leave-one-out error at {entry[headline]['locations_within_human_loo']}/35; states "
               f"{entry['states']}", flush=True)
     if diagnose:
         out["interpolation_limit"] = interpolation_limit(data)
@@ -192,12 +212,12 @@ def main(argv: list[str] | None = None) -> dict:
     per_recording, first_maps = {}, None
     for seed, path in zip(args.seeds, paths):
         print(f"approach-grid seed {seed}:", flush=True)
-        per_recording[seed], maps = evaluate_recording(path, args.diagnose)
+        per_recording[seed], maps = evaluate_recording(path, args.diagnose, args.posture)
         first_maps = first_maps or maps
     human = [r["human_cm"]["leave_one_out_mean"] for r in per_recording.values()]
     summary = {"human_leave_one_out_mean_cm": spread(human)}
     for grid in TRAIN_GRIDS:
-        for name in ("linear", "chosen"):
+        for name in ("linear", "chosen", *(("chosen+posture",) if args.posture else ())):
             runs = [r[grid][name] for r in per_recording.values()]
             summary[f"{grid}_{name}"] = {key: spread([run[key] for run in runs]) for key in
                                          ("mean_cm", "max_cm", "locations_within_human_loo", "fit_s",
@@ -207,7 +227,10 @@ def main(argv: list[str] | None = None) -> dict:
                      "held_out": [s for s in args.seeds if s != 0 or args.demonstrator != "reference"], "n_states": N_STATES,
                      **MODEL, "mean_model_candidates": [label(c) for c in candidates()],
                      "selection": "select_mean_model on the training grid, one location per fold",
-                     "phi": "object (x, y) at the end of the approach, m"},
+                     "phi": "object (x, y) at the end of the approach, m",
+                     **({"posture": "PostureModel (degree 3) on the training grid's frames, alpha by leaving out one "
+                                    "location at a time; replaces the chosen model's shoulder and elbow"}
+                        if args.posture else {})},
         "goals_cm": GOALS_CM, "paper_synthesis_error_cm": PAPER_ERROR_CM,
         "summary": summary, "per_recording": per_recording,
     }
@@ -216,6 +239,9 @@ def main(argv: list[str] | None = None) -> dict:
         lin = summary[f"{grid}_linear"]["mean_cm"]
         print(f"{grid}: chosen model {s['mean']:.3f} cm [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] over {s['n']} "
               f"recording(s) (goal {GOALS_CM[grid]}); linear {lin['mean']:.3f} cm")
+        if args.posture:
+            p = summary[f"{grid}_chosen+posture"]["mean_cm"]
+            print(f"{grid}: chosen model + posture {p['mean']:.3f} cm [{p['ci95'][0]:.3f}, {p['ci95'][1]:.3f}]")
     data = grid_data(load_demonstrations(paths[0]))
     rows = [round(100 * data.location((r, 0))[0]) for r in range(data.shape[0])]
     cols = [round(100 * data.location((0, c))[1]) for c in range(data.shape[1])]

@@ -23,9 +23,11 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.datasets import N_MARKERS, Demonstrations
 from hoap_actions.primitives.parametric_hmm import ParametricHMM
+from hoap_actions.primitives.posture import PostureModel, choose_alpha
 from hoap_actions.primitives.trajectory_metrics import dtw_average, warped_point_errors, warped_rms_error
 
-__all__ = ["GridData", "SynthesisMap", "fit_grid_model", "grid_data", "repetition_spread", "synthesis_map"]
+__all__ = ["GridData", "SynthesisMap", "fit_grid_model", "fit_grid_posture", "grid_data", "repetition_spread",
+           "synthesis_map"]
 
 TEST_GRID = "5x7"
 TIE_M = 1e-4  # errors are compared at 0.1 mm: closer than that counts as a tie
@@ -128,6 +130,17 @@ def fit_grid_model(data: GridData, grid: str, **params) -> tuple[ParametricHMM, 
     return model, time.perf_counter() - started
 
 
+def fit_grid_posture(data: GridData, grid: str) -> tuple[PostureModel, dict[float, float], float]:
+    """A :class:`~hoap_actions.primitives.posture.PostureModel` on every frame of ``grid``'s movements, its
+    penalty chosen by leaving out one location at a time; the errors (m) of the penalties tried; the fit
+    time (s), choice included."""
+    groups = [[x for x, _ in reps] for reps in data.cells[grid].values()]
+    started = time.perf_counter()
+    alpha, errors = choose_alpha(groups)
+    model = PostureModel(alpha=alpha).fit(np.concatenate([x for group in groups for x in group]))
+    return model, errors, time.perf_counter() - started
+
+
 @dataclass
 class SynthesisMap:
     """A model's synthesis error e (m) at every test location, per marker, and the synthesis time."""
@@ -151,14 +164,17 @@ class SynthesisMap:
         }
 
 
-def synthesis_map(model: ParametricHMM, data: GridData) -> SynthesisMap:
-    """Synthesise at every test location (its repetitions' mean effect) and score it against the reference."""
+def synthesis_map(model: ParametricHMM, data: GridData, posture: PostureModel | None = None) -> SynthesisMap:
+    """Synthesise at every test location (its repetitions' mean effect) and score it against the reference;
+    with ``posture``, the shoulder and elbow of each synthesis are the posture model's, from its hand."""
     errors = np.full(data.shape, np.nan)
     points = np.full(data.shape + (N_MARKERS,), np.nan)
     elapsed = 0.0
     for key in data.test:
         started = time.perf_counter()
         movement = model.synthesize(data.location(key))
+        if posture is not None:
+            movement = posture.complete(movement)
         elapsed += time.perf_counter() - started
         points[key] = warped_point_errors(movement, data.references[key])
         errors[key] = np.sqrt(np.mean(points[key] ** 2))
