@@ -89,6 +89,30 @@ def test_synthesis_map_known_answers(data):
     assert shifted["locations_within_human_loo"] == 0
 
 
+class _UndoArmShift:
+    """A stand-in posture model that puts the shoulder and elbow of a ``_Replay(data, shift)`` back."""
+
+    def __init__(self, data: GridData, shift: float) -> None:
+        self.data, self.shift = data, shift
+
+    def complete(self, X):
+        for key in self.data.test:
+            shift = np.tile(self.shift * across(self.data.location(key)), 6)
+            if X.shape == self.data.references[key].shape and np.allclose(X, self.data.references[key] + shift):
+                out = X.copy()
+                out[:, :6] -= shift[:6]
+                return out
+        raise AssertionError("not a replayed reference")
+
+
+def test_a_posture_model_replaces_the_synthesised_shoulder_and_elbow(data):
+    scored = synthesis_map(_Replay(data, 0.01), data, posture=_UndoArmShift(data, 0.01)).summary(data)
+    assert scored["per_marker_cm"]["shoulder"] == pytest.approx(0.0, abs=1e-9)
+    assert scored["per_marker_cm"]["elbow"] == pytest.approx(0.0, abs=1e-9)
+    assert scored["per_marker_cm"]["wrist"] == pytest.approx(1.0)
+    assert scored["mean_cm"] == pytest.approx(np.sqrt(4 / 6), abs=1e-9)
+
+
 def test_a_bending_mean_interpolates_a_bending_reach_better(data):
     linear, _ = fit_grid_model(data, "3x3", n_states=8, reg_covar=1e-6)
     bent, _ = fit_grid_model(data, "3x3", n_states=8, reg_covar=1e-6, mean_model="tps", smoothing=1e-3)
