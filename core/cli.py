@@ -180,13 +180,20 @@ def _record(args: argparse.Namespace) -> int:
     return 0
 
 
-def _merging_argument(parser: argparse.ArgumentParser) -> None:
+def _merging(text: str) -> str:
+    """A ``--merging`` value, checked when given (discovery's module is not imported for every command)."""
     from hoap_actions.primitives.discovery import MERGINGS
 
-    parser.add_argument("--merging", choices=MERGINGS,
+    if text not in MERGINGS:
+        raise argparse.ArgumentTypeError(f"merging must be one of {', '.join(MERGINGS)}; got {text!r}")
+    return text
+
+
+def _merging_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--merging", type=_merging, metavar="{agglomerative,fold}",
                         help="how pieces merge into states: agglomerative (all at once, closest first: the result does "
-                             "not depend on the demonstrations' order) or fold (the paper's, in the order given); "
-                             "default: the library's")
+                             "not depend on the demonstrations' order; the default) or fold (the paper's, in the "
+                             "order given)")
 
 
 def _discover(args: argparse.Namespace) -> int:

@@ -83,7 +83,7 @@ from hoap_actions.primitives import hmm_math
 from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
 from hoap_actions.primitives.datasets import MAX_COORDINATE_M
 from hoap_actions.primitives.gaussians import merge_gaussians, symmetric_kl_matrix
-from hoap_actions.primitives.json_files import read_json_model, write_json_model
+from hoap_actions.primitives.json_files import JsonModelFile, write_json_model
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
 from hoap_actions.primitives.state_clustering import cluster_pieces
@@ -169,7 +169,7 @@ class PrimitiveClass:
 # ---------------------------------------------------------------------------------------- estimator
 
 
-class PrimitiveDiscovery(Estimator):
+class PrimitiveDiscovery(JsonModelFile, Estimator):
     """Learn action primitives from object trajectories (and their equivalence classes in arm space).
 
     Parameters
@@ -675,11 +675,6 @@ class PrimitiveDiscovery(Estimator):
             ],
         }
         write_json_model(path, self._file_kind, self._format_version, body, overwrite)
-
-    @classmethod
-    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, Any]]:
-        document = read_json_model(path, cls._file_kind)
-        return document.get("kind"), document.get("format_version"), document
 
     @classmethod
     def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> PrimitiveDiscovery:

@@ -22,7 +22,7 @@ import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError
 from hoap_actions.primitives.base import Estimator, check_is_fitted
-from hoap_actions.primitives.json_files import read_json_model, write_json_model
+from hoap_actions.primitives.json_files import JsonModelFile, write_json_model
 
 FORMAT_VERSION = 1
 START, END = "<start>", "<end>"
@@ -30,7 +30,7 @@ START, END = "<start>", "<end>"
 Symbol = int | str  # a primitive class: an int id or a str name
 
 
-class ActionGrammar(Estimator):
+class ActionGrammar(JsonModelFile, Estimator):
     """First-order probabilistic finite-state automaton over primitive classes.
 
     Parameters
@@ -311,11 +311,6 @@ class ActionGrammar(Estimator):
             "n_sequences": self.n_sequences_,
         }
         write_json_model(path, self._file_kind, self._format_version, body, overwrite)
-
-    @classmethod
-    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, Any]]:
-        document = read_json_model(path, cls._file_kind)
-        return document.get("kind"), document.get("format_version"), document
 
     @classmethod
     def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> ActionGrammar:

@@ -40,3 +40,15 @@ def read_json_model(path: str | os.PathLike, kind: str) -> dict[str, Any]:
     if not isinstance(document, dict):
         raise DataFileError(f"{path} is not a {label}: it holds a JSON {type(document).__name__}, not an object")
     return document
+
+
+class JsonModelFile:
+    """Mixin for an :class:`~hoap_actions.primitives.base.Estimator` whose file is one JSON object written
+    by :func:`write_json_model`: its ``_read`` returns ``(kind, format_version, document)``."""
+
+    _file_kind: str
+
+    @classmethod
+    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, Any]]:
+        document = read_json_model(path, cls._file_kind)
+        return document.get("kind"), document.get("format_version"), document

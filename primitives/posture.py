@@ -16,6 +16,7 @@ with F the number of monomials of degree 1..``degree`` in 9 inputs.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,7 +28,7 @@ from hoap_actions.errors import DataFileError, InvalidInputError
 from hoap_actions.primitives import hmm_math
 from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
 from hoap_actions.primitives.datasets import N_MARKERS
-from hoap_actions.primitives.json_files import read_json_model, write_json_model
+from hoap_actions.primitives.json_files import JsonModelFile, write_json_model
 
 __all__ = ["PostureModel", "choose_alpha", "hand_inputs"]
 
@@ -53,12 +54,18 @@ def hand_inputs(X: np.ndarray) -> np.ndarray:
     return np.hstack([wrist, pointing[0] / lengths[0], pointing[1] / lengths[1]])
 
 
-def _monomials(degree: int) -> list[tuple[int, ...]]:
-    """Index tuples of every monomial of total degree 1..``degree`` in :data:`N_INPUTS` variables."""
-    return [m for d in range(1, degree + 1) for m in itertools.combinations_with_replacement(range(N_INPUTS), d)]
+@functools.lru_cache(maxsize=None)
+def _monomials(degree: int) -> np.ndarray:
+    """``(F, degree)`` input indices of every monomial of total degree 1..``degree`` in :data:`N_INPUTS`
+    variables, padded with index :data:`N_INPUTS` (a column of ones) below full degree."""
+    table = [m + (N_INPUTS,) * (degree - len(m)) for d in range(1, degree + 1)
+             for m in itertools.combinations_with_replacement(range(N_INPUTS), d)]
+    table = np.array(table, dtype=np.intp)
+    table.flags.writeable = False
+    return table
 
 
-class PostureModel(Estimator):
+class PostureModel(JsonModelFile, Estimator):
     """Shoulder and elbow markers as a ridge regression on polynomial features of the hand (module docstring).
 
     Parameters
@@ -92,9 +99,10 @@ class PostureModel(Estimator):
                 and self.alpha > 0):
             raise InvalidInputError(f"alpha must be a finite number > 0; got {self.alpha!r}")
 
-    def _features(self, X: np.ndarray) -> np.ndarray:
-        z = (hand_inputs(X) - self.input_mean_) / self.input_scale_
-        return np.stack([np.prod(z[:, list(m)], axis=1) for m in _monomials(self.degree)], axis=1)
+    def _features(self, inputs: np.ndarray) -> np.ndarray:
+        """``(T, F)`` monomials of the standardised :func:`hand_inputs` ``inputs``, in one gather."""
+        z = (inputs - self.input_mean_) / self.input_scale_
+        return np.prod(np.hstack([z, np.ones((len(z), 1))])[:, _monomials(self.degree)], axis=2)
 
     def fit(self, X: np.ndarray, lengths: Sequence[int] | None = None) -> PostureModel:
         """Learn from marker frames ``X`` ``(N, 18)`` (6 markers x xyz, m) of movements of ``lengths`` frames
@@ -110,7 +118,7 @@ class PostureModel(Estimator):
         inputs = hand_inputs(X)
         self.input_mean_ = inputs.mean(axis=0)
         self.input_scale_ = np.maximum(inputs.std(axis=0), 1e-9)
-        features = self._features(X)
+        features = self._features(inputs)
         self.feature_mean_ = features.mean(axis=0)
         self.target_mean_ = X[:, COMPLETED].mean(axis=0)
         F = features - self.feature_mean_
@@ -123,7 +131,7 @@ class PostureModel(Estimator):
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != 3 * N_MARKERS or not np.all(np.isfinite(X)):
             raise InvalidInputError(f"X must be finite marker frames of shape (T, {3 * N_MARKERS}); got shape {X.shape}")
-        return (self._features(X) - self.feature_mean_) @ self.coef_ + self.target_mean_
+        return (self._features(hand_inputs(X)) - self.feature_mean_) @ self.coef_ + self.target_mean_
 
     def complete(self, X: np.ndarray) -> np.ndarray:
         """A copy of marker frames ``X`` (``(T, 18)`` or ``(T, 6, 3)``) with the shoulder and elbow replaced
@@ -138,11 +146,6 @@ class PostureModel(Estimator):
     def _write(self, path: Path, overwrite: bool) -> None:
         body = {"params": file_params(self), **{name.rstrip("_"): getattr(self, name).tolist() for name in self._learned}}
         write_json_model(path, self._file_kind, self._format_version, body, overwrite)
-
-    @classmethod
-    def _read(cls, path: Path) -> tuple[Any, Any, dict[str, Any]]:
-        document = read_json_model(path, cls._file_kind)
-        return document.get("kind"), document.get("format_version"), document
 
     @classmethod
     def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> PostureModel:

@@ -238,6 +238,9 @@ def test_the_merging_chosen_on_the_command_line_is_the_discovery_s_and_a_mismatc
     assert not (tmp_path / "m").exists()
     assert main(["learn", "--demos", str(path), "--out", str(tmp_path / "m"), "--discovery", str(tmp_path / "fold"),
                  "--merging", "fold"]) == 0
+    with pytest.raises(SystemExit) as exit_info:
+        main(["learn", "--demos", str(path), "--out", str(tmp_path / "m3"), "--merging", "greedy"])
+    assert exit_info.value.code == 2 and "merging must be one of fold, agglomerative" in capsys.readouterr().err
 
 
 def test_whole_training_movements_are_cut_and_classified_from_the_markers_alone(small):
