@@ -28,16 +28,24 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
+from hoap_actions.envs.wrappers import SelectObservation
 from hoap_actions.errors import HoapActionsError
-from hoap_actions.outputs import claimed_file
+from hoap_actions.outputs import claimed_directory, claimed_file
 
 VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
 CONTROL_MODE = "ee_delta"
 
 
-def evaluate(model, env_id: str, control_mode: str, seeds: range, normalize=lambda obs: obs) -> dict:
-    env = gymnasium.make(env_id, control_mode=control_mode)
+def make_env(env_id: str, fields: list[str] | None) -> gymnasium.Env:
+    """The env a policy trains and is evaluated on: the whole observation, or only ``fields`` of it."""
+    env = gymnasium.make(env_id, control_mode=CONTROL_MODE)
+    return SelectObservation(env, fields) if fields else env
+
+
+def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normalize=lambda obs: obs) -> dict:
+    env = make_env(env_id, fields)
     successes = falls = 0
+    final_distances = []
     for seed in seeds:
         obs, info = env.reset(seed=seed)
         while True:
@@ -47,8 +55,10 @@ def evaluate(model, env_id: str, control_mode: str, seeds: range, normalize=lamb
                 break
         successes += bool(info["is_success"])
         falls += bool(info["fallen"])
+        final_distances.append(float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"])))
     env.close()
-    return {"success_rate": successes / len(seeds), "falls": falls, "episodes": len(seeds)}
+    return {"success_rate": successes / len(seeds), "falls": falls, "episodes": len(seeds),
+            "final_distance_m": final_distances}
 
 
 def main() -> None:
@@ -62,6 +72,13 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="write the learning curve here (claimed before training; "
                         "an existing file is refused unless --overwrite)")
     parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--fields", nargs="+", metavar="FIELD",
+                        help="train on these named fields of the observation only (SelectObservation; e.g. "
+                             "tcp_position target peg_positions peg_quaternions hole_positions); default: all of it")
+    parser.add_argument("--save", type=Path, help="save the trained policy (and the normalisation statistics) "
+                        "in this new directory")
+    parser.add_argument("--evaluate", type=Path, metavar="DIR",
+                        help="no training: evaluate the policy saved in DIR (by --save) on the evaluation layouts")
     parser.add_argument("--torch-threads", type=int, default=1,
                         help="PyTorch threads (default 1: two runs side by side on 2 cores with PyTorch's default "
                              "threads oversubscribe the cores, benchmarks/results/NOTES.md)")
@@ -78,29 +95,63 @@ def main() -> None:
               ">= 0", file=sys.stderr)
         raise SystemExit(2)
     eval_seeds = range(args.eval_first_seed, args.eval_first_seed + args.eval_episodes)
+    if args.evaluate is not None:
+        saved = json.loads((args.evaluate / "settings.json").read_text()) if (args.evaluate / "settings.json").is_file() else None
+        if saved is None:
+            print(f"error: {args.evaluate} holds no policy saved by --save (no settings.json)", file=sys.stderr)
+            raise SystemExit(2)
+        point = evaluate_saved(args.evaluate, saved, eval_seeds)
+        print(json.dumps({key: value for key, value in point.items() if key != "final_distance_m"}))
+        if args.json:
+            with claimed_file(args.json, args.overwrite, "evaluation") as partial:
+                partial.write_text(json.dumps({**saved, "eval_seeds": [eval_seeds.start, eval_seeds.stop], **point},
+                                              indent=2))
+        return
     with contextlib.ExitStack() as claims:
         try:
+            if args.fields:
+                make_env(args.env, args.fields).close()  # unknown fields fail here, before any training
             partial = claims.enter_context(claimed_file(args.json, args.overwrite, "learning curve")) if args.json else None
+            folder = claims.enter_context(claimed_directory(args.save, args.overwrite, "policy")) if args.save else None
         except HoapActionsError as error:
             print(f"error: {error}", file=sys.stderr)
             raise SystemExit(2) from None
-        curve = train(args, eval_seeds)
+        curve = train(args, eval_seeds, folder)
         if partial is not None:
             partial.write_text(json.dumps({"env": args.env, "control_mode": CONTROL_MODE, "algorithm": "SAC + HER",
-                                           "normalize": args.normalize, "seed": args.seed,
+                                           "normalize": args.normalize, "fields": args.fields, "seed": args.seed,
                                            "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve},
                                           indent=2))
 
 
-def train(args: argparse.Namespace, eval_seeds: range) -> list[dict]:
-    """Train with an evaluation every ``--eval-every`` steps; the learning curve."""
+def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
+    """Evaluate a policy saved by ``--save``, its normalisation statistics frozen."""
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"])])  # HER's buffer asks for an env
+    model = SAC.load(folder / "policy.zip", env=venv, device="cpu")
+    normalize = lambda obs: obs  # noqa: E731
+    if (folder / "normalize.pkl").is_file():
+        stats = VecNormalize.load(str(folder / "normalize.pkl"), venv)
+        stats.training = False
+        normalize = stats.normalize_obs
+    try:
+        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize)
+    finally:
+        venv.close()
+
+
+def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> list[dict]:
+    """Train with an evaluation every ``--eval-every`` steps; the learning curve. The policy is saved in
+    ``folder`` (``policy.zip``, and ``normalize.pkl`` with ``--normalize``) when one is given."""
     import torch
     from stable_baselines3 import SAC, HerReplayBuffer
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(args.torch_threads)
-    venv = make_vec_env(args.env, n_envs=1, seed=args.seed, env_kwargs={"control_mode": CONTROL_MODE})
+    venv = make_vec_env(make_env, n_envs=1, seed=args.seed, env_kwargs={"env_id": args.env, "fields": args.fields})
     normalize = lambda obs: obs  # noqa: E731
     if args.normalize:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
@@ -116,12 +167,19 @@ def train(args: argparse.Namespace, eval_seeds: range) -> list[dict]:
     for _ in range(0, args.steps, args.eval_every):
         model.learn(args.eval_every, reset_num_timesteps=False)
         point = {"steps": int(model.num_timesteps), "train_wall_s": time.perf_counter() - start,
-                 **evaluate(model, args.env, CONTROL_MODE, eval_seeds, normalize)}
+                 **evaluate(model, args.env, args.fields, eval_seeds, normalize)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
         print(f"{point['steps']:6d} steps, {point['train_wall_s'] / 60:5.1f} min: success {point['success_rate']:.0%} "
-              f"on {point['episodes']} layouts, falls {point['falls']}", flush=True)
+              f"on {point['episodes']} layouts (median end distance {np.median(point['final_distance_m']) * 100:.1f} cm), "
+              f"falls {point['falls']}", flush=True)
+    if folder is not None:
+        model.save(folder / "policy.zip")
+        if args.normalize:
+            venv.save(str(folder / "normalize.pkl"))
+        (folder / "settings.json").write_text(json.dumps({"env": args.env, "fields": args.fields, "seed": args.seed,
+                                                          "steps": int(model.num_timesteps)}))
     venv.close()
     return curve
 
