@@ -1,0 +1,72 @@
+"""SelectObservation: the kept fields are the env's own named fields, the goal API is untouched."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import hoap_actions  # noqa: F401
+from hoap_actions.envs.wrappers import SelectObservation
+from hoap_actions.errors import InvalidInputError
+
+FIELDS = ["tcp_position", "target", "peg_positions", "hole_positions"]
+
+
+@pytest.fixture
+def reach():
+    env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+    yield env
+    env.close()
+
+
+def test_kept_fields_are_the_parsed_fields_in_the_given_order(reach):
+    wrapped = SelectObservation(reach, FIELDS)
+    obs, _ = wrapped.reset(seed=3)
+    full = reach.unwrapped.parse_observation(reach.unwrapped._observation())
+    expected = np.concatenate([np.ravel(full[name]) for name in FIELDS]).astype(np.float32)
+    np.testing.assert_array_equal(obs["observation"], expected)
+    assert wrapped.observation_space["observation"].shape == (3 + 3 + 9 + 9,)
+    np.testing.assert_array_equal(obs["desired_goal"], full["desired_goal"].astype(np.float32))
+    obs, *_ = wrapped.step(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32))
+    assert wrapped.observation_space.contains(obs)
+
+
+def test_rewards_and_episodes_are_those_of_the_inner_env():
+    actions = np.random.default_rng(0).uniform(-1, 1, (12, 4)).astype(np.float32)
+    runs = []
+    for wrap in (False, True):
+        env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+        env = SelectObservation(env, FIELDS) if wrap else env
+        obs, _ = env.reset(seed=11)
+        trace = [obs["achieved_goal"]]
+        for action in actions:
+            obs, reward, *_ = env.step(action)
+            trace += [obs["achieved_goal"], [reward]]
+        runs.append(np.concatenate(trace))
+        env.close()
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_compute_reward_is_forwarded_for_goal_batches(reach):
+    wrapped = SelectObservation(reach, FIELDS)
+    achieved = np.zeros((2, 3))
+    desired = np.array([[0.0, 0.0, 0.005], [0.0, 0.0, 0.5]])
+    np.testing.assert_array_equal(wrapped.compute_reward(achieved, desired, [{}, {}]), [0.0, -1.0])
+
+
+def test_gymnasium_checker_passes_on_the_wrapper(reach):
+    check_env(SelectObservation(reach, FIELDS), skip_render_check=True)
+
+
+def test_sb3_checker_passes_on_the_wrapper(reach):
+    """SB3's checker calls compute_reward on the object it is given: the wrapper itself, not env.unwrapped."""
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    sb3_checker.check_env(SelectObservation(reach, FIELDS), warn=False)
+
+
+@pytest.mark.parametrize("fields", [[], ["tcp_position", "tcp_position"], ["elbow"], ["desired_goal"]])
+def test_bad_fields_name_the_accepted_ones(reach, fields):
+    with pytest.raises(InvalidInputError, match="accepted: .*tcp_position"):
+        SelectObservation(reach, fields)
