@@ -82,6 +82,8 @@ def main() -> None:
     parser.add_argument("--torch-threads", type=int, default=1,
                         help="PyTorch threads (default 1: two runs side by side on 2 cores with PyTorch's default "
                              "threads oversubscribe the cores, benchmarks/results/NOTES.md)")
+    parser.add_argument("--gamma", type=float, default=0.95,
+                        help="discount factor (0.95 as for Fetch reaches; a reach here takes 40-60 steps at 5 mm each)")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
@@ -90,9 +92,10 @@ def main() -> None:
     except ImportError:
         raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
 
-    if min(args.steps, args.eval_every, args.eval_episodes, args.torch_threads) < 1 or args.eval_first_seed < 0:
-        print("error: --steps, --eval-every, --eval-episodes and --torch-threads must be >= 1 and --eval-first-seed "
-              ">= 0", file=sys.stderr)
+    if min(args.steps, args.eval_every, args.eval_episodes, args.torch_threads) < 1 or args.eval_first_seed < 0 \
+            or not 0.0 < args.gamma < 1.0:
+        print("error: --steps, --eval-every, --eval-episodes and --torch-threads must be >= 1, --eval-first-seed "
+              ">= 0 and --gamma in (0, 1)", file=sys.stderr)
         raise SystemExit(2)
     eval_seeds = range(args.eval_first_seed, args.eval_first_seed + args.eval_episodes)
     if args.evaluate is not None:
@@ -119,7 +122,8 @@ def main() -> None:
         curve = train(args, eval_seeds, folder)
         if partial is not None:
             partial.write_text(json.dumps({"env": args.env, "control_mode": CONTROL_MODE, "algorithm": "SAC + HER",
-                                           "normalize": args.normalize, "fields": args.fields, "seed": args.seed,
+                                           "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma,
+                                           "seed": args.seed,
                                            "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve},
                                           indent=2))
 
@@ -161,7 +165,7 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
             return venv.normalize_obs(obs)
     model = SAC("MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer,
                 replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
-                learning_starts=1000, learning_rate=1e-3, gamma=0.95, tau=0.05, batch_size=256,
+                learning_starts=1000, learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
                 policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
     curve, start = [], time.perf_counter()
     for _ in range(0, args.steps, args.eval_every):
