@@ -10,6 +10,7 @@ import numpy as np
 from hoap_actions.controllers.phmm_policy import PHMMPolicy
 from hoap_actions.controllers.scripted_expert import ScriptedExpert
 from hoap_actions.envs import ENV_IDS
+from hoap_actions.envs.controls import MAX_HAND_STEP
 from hoap_actions.errors import InvalidInputError
 
 
@@ -31,7 +32,27 @@ class RandomPolicy:
         return self.action_space.sample()
 
 
-POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert, "phmm": PHMMPolicy}
+class StraightReach:
+    """The straight-line reference for ``Reach-v0`` (ee_delta): the hand driven at the target at up to full
+    speed, gripper open. A baseline for learners, and demonstrations they can start from; it fails where a
+    peg or the board stands in the straight line (the hand yields on contact)."""
+
+    failure: str | None = None
+    control_mode = "ee_delta"
+    env_ids = ("hoap_actions/Reach-v0",)
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        del env  # the goal vectors of the observation are all it reads
+
+    def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        """Nothing to reset: each action depends on the current observation alone."""
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        step = (np.asarray(obs["desired_goal"], float) - np.asarray(obs["achieved_goal"], float)) / MAX_HAND_STEP
+        return np.append(np.clip(step, -1.0, 1.0), -1.0).astype(np.float32)
+
+
+POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert, "phmm": PHMMPolicy, "straight": StraightReach}
 """Policies by name; each has ``control_mode`` (the env's) and ``env_ids`` (the envs it can act in)."""
 
 

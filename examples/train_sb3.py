@@ -28,6 +28,7 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
+from hoap_actions.controllers.policies import StraightReach
 from hoap_actions.envs.wrappers import SelectObservation
 from hoap_actions.errors import HoapActionsError
 from hoap_actions.outputs import claimed_directory, claimed_file
@@ -84,6 +85,10 @@ def main() -> None:
                              "threads oversubscribe the cores, benchmarks/results/NOTES.md)")
     parser.add_argument("--gamma", type=float, default=0.95,
                         help="discount factor (0.95 as for Fetch reaches; a reach here takes 40-60 steps at 5 mm each)")
+    parser.add_argument("--demo-steps", type=int, default=0, metavar="N",
+                        help="Reach-v0: the first N steps (part of --steps) follow the straight-line reference "
+                             "(hoap-actions' 'straight' policy) instead of uniform random actions, and learning "
+                             "starts after them: demonstrations in the replay buffer")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
@@ -93,9 +98,13 @@ def main() -> None:
         raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
 
     if min(args.steps, args.eval_every, args.eval_episodes, args.torch_threads) < 1 or args.eval_first_seed < 0 \
-            or not 0.0 < args.gamma < 1.0:
+            or not 0.0 < args.gamma < 1.0 or not 0 <= args.demo_steps < args.steps:
         print("error: --steps, --eval-every, --eval-episodes and --torch-threads must be >= 1, --eval-first-seed "
-              ">= 0 and --gamma in (0, 1)", file=sys.stderr)
+              ">= 0, --gamma in (0, 1) and --demo-steps in [0, --steps)", file=sys.stderr)
+        raise SystemExit(2)
+    if args.demo_steps and args.env not in StraightReach.env_ids:
+        print(f"error: --demo-steps follows the straight-line reach, which acts in {list(StraightReach.env_ids)} only",
+              file=sys.stderr)
         raise SystemExit(2)
     eval_seeds = range(args.eval_first_seed, args.eval_first_seed + args.eval_episodes)
     if args.evaluate is not None:
@@ -123,7 +132,7 @@ def main() -> None:
         if partial is not None:
             partial.write_text(json.dumps({"env": args.env, "control_mode": CONTROL_MODE, "algorithm": "SAC + HER",
                                            "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma,
-                                           "seed": args.seed,
+                                           "demo_steps": args.demo_steps, "seed": args.seed,
                                            "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve},
                                           indent=2))
 
@@ -163,20 +172,34 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
         def normalize(obs):
             venv.training = False
             return venv.normalize_obs(obs)
-    model = SAC("MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer,
+    reference = StraightReach(venv) if args.demo_steps else None
+
+    class SACFromDemonstrations(SAC):
+        """SAC whose warm-up steps follow the straight-line reference (when given) instead of uniform noise."""
+
+        def _sample_action(self, learning_starts, action_noise=None, n_envs=1):
+            if reference is None or self.num_timesteps >= args.demo_steps:
+                return super()._sample_action(learning_starts, action_noise, n_envs)
+            obs = self._last_original_obs if self._vec_normalize_env is not None else self._last_obs
+            action = np.stack([reference({key: value[i] for key, value in obs.items()}) for i in range(n_envs)])
+            return action, self.policy.scale_action(action)
+
+    model = SACFromDemonstrations(
+                "MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer,
                 replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
-                learning_starts=1000, learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
+                learning_starts=max(1000, args.demo_steps), learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
                 policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
     curve, start = [], time.perf_counter()
     for _ in range(0, args.steps, args.eval_every):
         model.learn(args.eval_every, reset_num_timesteps=False)
         point = {"steps": int(model.num_timesteps), "train_wall_s": time.perf_counter() - start,
+                 "training_success_last_100": float(np.mean(model.ep_success_buffer)) if model.ep_success_buffer else None,
                  **evaluate(model, args.env, args.fields, eval_seeds, normalize)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
         print(f"{point['steps']:6d} steps, {point['train_wall_s'] / 60:5.1f} min: success {point['success_rate']:.0%} "
-              f"on {point['episodes']} layouts (median end distance {np.median(point['final_distance_m']) * 100:.1f} cm), "
+              f"on {point['episodes']} layouts (training episodes, last 100: {point['training_success_last_100']}; median end distance {np.median(point['final_distance_m']) * 100:.1f} cm), "
               f"falls {point['falls']}", flush=True)
     if folder is not None:
         model.save(folder / "policy.zip")
