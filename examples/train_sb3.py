@@ -112,10 +112,15 @@ def main() -> None:
         if saved is None:
             print(f"error: {args.evaluate} holds no policy saved by --save (no settings.json)", file=sys.stderr)
             raise SystemExit(2)
-        point = evaluate_saved(args.evaluate, saved, eval_seeds)
-        print(json.dumps({key: value for key, value in point.items() if key != "final_distance_m"}))
-        if args.json:
-            with claimed_file(args.json, args.overwrite, "evaluation") as partial:
+        with contextlib.ExitStack() as claims:
+            try:
+                partial = claims.enter_context(claimed_file(args.json, args.overwrite, "evaluation")) if args.json else None
+            except HoapActionsError as error:
+                print(f"error: {error}", file=sys.stderr)
+                raise SystemExit(2) from None
+            point = evaluate_saved(args.evaluate, saved, eval_seeds)
+            print(json.dumps({key: value for key, value in point.items() if key != "final_distance_m"}))
+            if partial is not None:
                 partial.write_text(json.dumps({**saved, "eval_seeds": [eval_seeds.start, eval_seeds.stop], **point},
                                               indent=2))
         return
