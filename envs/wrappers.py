@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import gymnasium
 import numpy as np
@@ -49,4 +49,39 @@ class SelectObservation(gymnasium.ObservationWrapper, gymnasium.utils.RecordCons
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
         """The inner env's reward: the goal vectors are unchanged by this wrapper."""
+        return self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)
+
+
+class ResidualAction(gymnasium.Wrapper):
+    """The learner's action is added to a base policy's, and the sum clipped to the action space (residual RL).
+
+    Why: a learner that starts from a competent controller has only its corrections to learn. The base sees
+    each observation the env returns; goal relabelling (HER) does not fit, since the base acted on the goal
+    the episode really had.
+    """
+
+    def __init__(self, env: gymnasium.Env, base: Callable[[dict[str, np.ndarray]], np.ndarray]) -> None:
+        if not isinstance(env.action_space, spaces.Box):
+            raise InvalidInputError(f"a residual needs a Box action space; this env's is {env.action_space}")
+        super().__init__(env)
+        self.base = base
+        self._last_obs: dict[str, np.ndarray] | None = None
+
+    def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        self._last_obs = obs
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self._last_obs is None:
+            raise InvalidInputError("step() before reset(): the base policy needs an observation")
+        space = self.action_space
+        total = np.clip(np.asarray(self.base(self._last_obs), dtype=float) + np.asarray(action, dtype=float),
+                        space.low, space.high).astype(space.dtype)
+        obs, reward, terminated, truncated, info = self.env.step(total)
+        self._last_obs = obs
+        return obs, reward, terminated, truncated, info
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        """The inner env's reward."""
         return self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)

@@ -29,7 +29,7 @@ import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
 from hoap_actions.controllers.policies import StraightReach
-from hoap_actions.envs.wrappers import SelectObservation
+from hoap_actions.envs.wrappers import ResidualAction, SelectObservation
 from hoap_actions.errors import HoapActionsError
 from hoap_actions.outputs import claimed_directory, claimed_file
 
@@ -37,14 +37,18 @@ VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
 CONTROL_MODE = "ee_delta"
 
 
-def make_env(env_id: str, fields: list[str] | None) -> gymnasium.Env:
-    """The env a policy trains and is evaluated on: the whole observation, or only ``fields`` of it."""
+def make_env(env_id: str, fields: list[str] | None, residual: bool = False) -> gymnasium.Env:
+    """The env a policy trains and is evaluated on: the whole observation, or only ``fields`` of it; with
+    ``residual``, the policy's actions are corrections to the straight-line reach's."""
     env = gymnasium.make(env_id, control_mode=CONTROL_MODE)
+    if residual:
+        env = ResidualAction(env, StraightReach(env))
     return SelectObservation(env, fields) if fields else env
 
 
-def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normalize=lambda obs: obs) -> dict:
-    env = make_env(env_id, fields)
+def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normalize=lambda obs: obs,
+             residual: bool = False) -> dict:
+    env = make_env(env_id, fields, residual)
     successes = falls = 0
     final_distances = []
     for seed in seeds:
@@ -89,6 +93,9 @@ def main() -> None:
                         help="Reach-v0: the first N steps (part of --steps) follow the straight-line reference "
                              "(hoap-actions' 'straight' policy) instead of uniform random actions, and learning "
                              "starts after them: demonstrations in the replay buffer")
+    parser.add_argument("--residual", action="store_true",
+                        help="Reach-v0: the policy learns corrections added to the straight-line reach's actions "
+                             "(residual RL; a plain replay buffer, as relabelled goals do not fit the base's actions)")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
@@ -102,9 +109,9 @@ def main() -> None:
         print("error: --steps, --eval-every, --eval-episodes and --torch-threads must be >= 1, --eval-first-seed "
               ">= 0, --gamma in (0, 1) and --demo-steps in [0, --steps)", file=sys.stderr)
         raise SystemExit(2)
-    if args.demo_steps and args.env not in StraightReach.env_ids:
-        print(f"error: --demo-steps follows the straight-line reach, which acts in {list(StraightReach.env_ids)} only",
-              file=sys.stderr)
+    if (args.demo_steps or args.residual) and args.env not in StraightReach.env_ids:
+        print(f"error: --demo-steps and --residual use the straight-line reach, which acts in "
+              f"{list(StraightReach.env_ids)} only", file=sys.stderr)
         raise SystemExit(2)
     eval_seeds = range(args.eval_first_seed, args.eval_first_seed + args.eval_episodes)
     if args.evaluate is not None:
@@ -137,7 +144,8 @@ def main() -> None:
         if partial is not None:
             partial.write_text(json.dumps({"env": args.env, "control_mode": CONTROL_MODE, "algorithm": "SAC + HER",
                                            "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma,
-                                           "demo_steps": args.demo_steps, "seed": args.seed,
+                                           "demo_steps": args.demo_steps, "residual": args.residual,
+                                           "seed": args.seed,
                                            "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve},
                                           indent=2))
 
@@ -147,7 +155,8 @@ def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"])])  # HER's buffer asks for an env
+    residual = saved.get("residual", False)
+    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual)])  # HER's buffer asks for an env
     model = SAC.load(folder / "policy.zip", env=venv, device="cpu")
     normalize = lambda obs: obs  # noqa: E731
     if (folder / "normalize.pkl").is_file():
@@ -155,7 +164,7 @@ def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
         stats.training = False
         normalize = stats.normalize_obs
     try:
-        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize)
+        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize, residual)
     finally:
         venv.close()
 
@@ -169,7 +178,8 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(args.torch_threads)
-    venv = make_vec_env(make_env, n_envs=1, seed=args.seed, env_kwargs={"env_id": args.env, "fields": args.fields})
+    venv = make_vec_env(make_env, n_envs=1, seed=args.seed,
+                        env_kwargs={"env_id": args.env, "fields": args.fields, "residual": args.residual})
     normalize = lambda obs: obs  # noqa: E731
     if args.normalize:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
@@ -190,8 +200,8 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
             return action, self.policy.scale_action(action)
 
     model = SACFromDemonstrations(
-                "MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer,
-                replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+                "MultiInputPolicy", venv, replay_buffer_class=None if args.residual else HerReplayBuffer,
+                replay_buffer_kwargs=None if args.residual else {"n_sampled_goal": 4, "goal_selection_strategy": "future"},
                 learning_starts=max(1000, args.demo_steps), learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
                 policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
     curve, start = [], time.perf_counter()
@@ -199,7 +209,7 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
         model.learn(args.eval_every, reset_num_timesteps=False)
         point = {"steps": int(model.num_timesteps), "train_wall_s": time.perf_counter() - start,
                  "training_success_last_100": float(np.mean(model.ep_success_buffer)) if model.ep_success_buffer else None,
-                 **evaluate(model, args.env, args.fields, eval_seeds, normalize)}
+                 **evaluate(model, args.env, args.fields, eval_seeds, normalize, args.residual)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
@@ -210,7 +220,8 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
         model.save(folder / "policy.zip")
         if args.normalize:
             venv.save(str(folder / "normalize.pkl"))
-        (folder / "settings.json").write_text(json.dumps({"env": args.env, "fields": args.fields, "seed": args.seed,
+        (folder / "settings.json").write_text(json.dumps({"env": args.env, "fields": args.fields,
+                                                          "residual": args.residual, "seed": args.seed,
                                                           "steps": int(model.num_timesteps)}))
     venv.close()
     return curve
