@@ -70,3 +70,42 @@ def test_sb3_checker_passes_on_the_wrapper(reach):
 def test_bad_fields_name_the_accepted_ones(reach, fields):
     with pytest.raises(InvalidInputError, match="accepted: .*tcp_position"):
         SelectObservation(reach, fields)
+
+
+# ------------------------------------------------------------------------------------------ residual actions
+def test_a_zero_residual_replays_the_base_policy_bit_for_bit():
+    from hoap_actions.controllers.policies import StraightReach
+    from hoap_actions.envs.wrappers import ResidualAction
+
+    traces = []
+    for residual in (False, True):
+        env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+        base = StraightReach(env)
+        env = ResidualAction(env, base) if residual else env
+        obs, _ = env.reset(seed=5)
+        trace = [obs["achieved_goal"]]
+        for _ in range(15):
+            obs, reward, *_ = env.step(np.zeros(4, np.float32) if residual else base(obs))
+            trace += [obs["achieved_goal"], [reward]]
+        traces.append(np.concatenate(trace))
+        env.close()
+    np.testing.assert_array_equal(traces[0], traces[1])
+
+
+def test_the_sum_is_clipped_and_step_needs_a_reset(reach):
+    from hoap_actions.envs.wrappers import ResidualAction
+
+    sent = []
+
+    class Recorder(gymnasium.Wrapper):
+        def step(self, action):
+            sent.append(np.array(action))
+            return self.env.step(action)
+
+    wrapped = ResidualAction(Recorder(reach), lambda obs: np.array([0.75, -0.75, 0.0, -1.0]))
+    with pytest.raises(InvalidInputError, match="before reset"):
+        wrapped.step(np.zeros(4, np.float32))
+    wrapped.reset(seed=0)
+    wrapped.step(np.array([0.5, -0.5, 0.25, 0.5], np.float32))
+    np.testing.assert_allclose(sent[0], [1.0, -1.0, 0.25, -0.5])
+    np.testing.assert_array_equal(wrapped.compute_reward(np.zeros(3), np.zeros(3), {}), 0.0)
