@@ -55,7 +55,7 @@ def test_expert_on_100_unseen_layouts(env):
 def test_policies_are_found_by_name_with_their_control_mode():
     assert policy_class("scripted") is ScriptedExpert and ScriptedExpert.control_mode == "ee_delta"
     assert policy_class("random").control_mode == "joint_delta"
-    with pytest.raises(InvalidInputError, match=r"unknown policy 'nope'; accepted: \['phmm', 'random', 'scripted'\]"):
+    with pytest.raises(InvalidInputError, match=r"unknown policy 'nope'; accepted: \['phmm', 'random', 'scripted', 'straight'\]"):
         policy_class("nope")
 
 
