@@ -2,6 +2,8 @@
 
     pip install "hoap-actions[rl]"
     python examples/train_sb3.py [--steps 30000] [--eval-every 10000] [--json out/sb3_reach.json]
+    python examples/train_sb3.py --normalize --steps 50000 --save out/reach_policy
+    python examples/train_sb3.py --evaluate out/reach_policy --eval-first-seed 66000
 
 How the envs meet SB3: make them with ``make_vec_env`` (the Gymnasium id and ``env_kwargs``); the
 observation is a goal dict, so the policy is ``"MultiInputPolicy"`` and HER
@@ -12,7 +14,10 @@ it ``env.unwrapped``. A fall ends an episode and costs a whole episode of -1s, s
 Every ``--eval-every`` steps the deterministic policy runs ``--eval-episodes`` layouts from
 ``--eval-first-seed`` (never used in training) and prints success, falls, training steps and wall
 time. The default layouts, 50000-50049, chose the settings here (a validation split); a headline
-figure names fresh seeds declared before its run (``benchmarks/results/NOTES.md``).
+figure names fresh seeds declared before its run (``benchmarks/results/NOTES.md``). Variants, each
+measured there: ``--fields`` (a part of the observation, ``SelectObservation``), ``--gamma``,
+``--demo-steps`` (the straight-line reach takes the first steps), ``--residual`` (corrections to it,
+``ResidualAction``).
 """
 
 from __future__ import annotations
