@@ -1,4 +1,4 @@
-"""Gymnasium wrappers for learners that should see only part of an env's observation."""
+"""Gymnasium wrappers for learners: part of an env's observation, or actions on top of a base policy's."""
 
 from __future__ import annotations
 
@@ -13,14 +13,24 @@ from hoap_actions.errors import InvalidInputError
 GOAL_KEYS = ("achieved_goal", "desired_goal")
 
 
-class SelectObservation(gymnasium.ObservationWrapper, gymnasium.utils.RecordConstructorArgs):
+class _ForwardsReward:
+    """``compute_reward`` of the wrapped env (neither wrapper changes the goal vectors): HER relabels goals
+    with it, and SB3's ``check_env`` calls it on the object it is given, which plain Gymnasium wrappers
+    do not forward."""
+
+    env: gymnasium.Env
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        return self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)
+
+
+class SelectObservation(_ForwardsReward, gymnasium.ObservationWrapper, gymnasium.utils.RecordConstructorArgs):
     """Keep the named fields of ``obs["observation"]`` (in the order given); the goal vectors stay.
 
     Why: a learner reaching with the hand gains nothing from 28 joint angles and velocities but must
     learn to ignore them; choosing fields by name (the env's ``parse_observation``) keeps the choice
-    readable and immune to the layout of the vector. ``compute_reward`` is forwarded (HER relabels
-    goals with it, SB3's ``check_env`` calls it on the object it is given); ``parse_observation`` stays
-    the inner env's, reachable through ``get_wrapper_attr``.
+    readable and immune to the layout of the vector. ``parse_observation`` stays the inner env's,
+    reachable through ``get_wrapper_attr``.
     """
 
     def __init__(self, env: gymnasium.Env, fields: Sequence[str]) -> None:
@@ -47,12 +57,8 @@ class SelectObservation(gymnasium.ObservationWrapper, gymnasium.utils.RecordCons
         kept = np.concatenate([np.ravel(parsed[name]) for name in self.fields]).astype(np.float32)
         return {"observation": kept, **{key: observation[key] for key in GOAL_KEYS}}
 
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        """The inner env's reward: the goal vectors are unchanged by this wrapper."""
-        return self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)
 
-
-class ResidualAction(gymnasium.Wrapper):
+class ResidualAction(_ForwardsReward, gymnasium.Wrapper):
     """The learner's action is added to a base policy's, and the sum clipped to the action space (residual RL).
 
     Why: a learner that starts from a competent controller has only its corrections to learn. The base sees
@@ -76,12 +82,11 @@ class ResidualAction(gymnasium.Wrapper):
         if self._last_obs is None:
             raise InvalidInputError("step() before reset(): the base policy needs an observation")
         space = self.action_space
+        if np.shape(action) != space.shape:
+            raise InvalidInputError(f"action has shape {np.shape(action)}; a residual must have the action space's "
+                                    f"shape {space.shape}")
         total = np.clip(np.asarray(self.base(self._last_obs), dtype=float) + np.asarray(action, dtype=float),
                         space.low, space.high).astype(space.dtype)
         obs, reward, terminated, truncated, info = self.env.step(total)
         self._last_obs = obs
         return obs, reward, terminated, truncated, info
-
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        """The inner env's reward."""
-        return self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)

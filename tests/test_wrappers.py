@@ -107,6 +107,9 @@ def test_the_sum_is_clipped_and_step_needs_a_reset(reach):
     with pytest.raises(InvalidInputError, match="before reset"):
         wrapped.step(np.zeros(4, np.float32))
     wrapped.reset(seed=0)
+    with pytest.raises(InvalidInputError, match=r"action space's shape \(4,\)"):
+        wrapped.step(np.zeros(3, np.float32))
+    assert not sent  # refused before the env saw it
     wrapped.step(np.array([0.5, -0.5, 0.25, 0.5], np.float32))
     np.testing.assert_allclose(sent[0], [1.0, -1.0, 0.25, -0.5])
     np.testing.assert_array_equal(wrapped.compute_reward(np.zeros(3), np.zeros(3), {}), 0.0)
