@@ -120,10 +120,13 @@ def main() -> None:
         raise SystemExit(2)
     eval_seeds = range(args.eval_first_seed, args.eval_first_seed + args.eval_episodes)
     if args.evaluate is not None:
-        saved = json.loads((args.evaluate / "settings.json").read_text()) if (args.evaluate / "settings.json").is_file() else None
-        if saved is None:
-            print(f"error: {args.evaluate} holds no policy saved by --save (no settings.json)", file=sys.stderr)
-            raise SystemExit(2)
+        try:
+            saved = json.loads((args.evaluate / "settings.json").read_text())
+            make_env(saved["env"], saved["fields"], saved["residual"]).close()  # the env it acted in can be made
+        except (OSError, ValueError, KeyError, TypeError, HoapActionsError):
+            print(f"error: {args.evaluate} holds no policy saved by --save (a readable settings.json naming its env)",
+                  file=sys.stderr)
+            raise SystemExit(2) from None
         with contextlib.ExitStack() as claims:
             try:
                 partial = claims.enter_context(claimed_file(args.json, args.overwrite, "evaluation")) if args.json else None
@@ -147,12 +150,20 @@ def main() -> None:
             raise SystemExit(2) from None
         curve = train(args, eval_seeds, folder)
         if partial is not None:
-            partial.write_text(json.dumps({"env": args.env, "control_mode": CONTROL_MODE, "algorithm": "SAC + HER",
-                                           "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma,
-                                           "demo_steps": args.demo_steps, "residual": args.residual,
-                                           "seed": args.seed,
-                                           "eval_seeds": [eval_seeds.start, eval_seeds.stop], "curve": curve},
-                                          indent=2))
+            partial.write_text(json.dumps({**settings(args), "eval_seeds": [eval_seeds.start, eval_seeds.stop],
+                                           "curve": curve}, indent=2))
+
+
+def settings(args: argparse.Namespace) -> dict:
+    """What a run was trained with: written beside its learning curve and its saved policy."""
+    return {"env": args.env, "control_mode": CONTROL_MODE,
+            "algorithm": "SAC (residual on the straight-line reach)" if args.residual else "SAC + HER",
+            "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma, "demo_steps": args.demo_steps,
+            "residual": args.residual, "seed": args.seed}
+
+
+def _share(value: float | None) -> str:
+    return "-" if value is None else f"{value:.0%}"
 
 
 def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
@@ -160,7 +171,7 @@ def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    residual = saved.get("residual", False)
+    residual = saved["residual"]
     venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual)])  # HER's buffer asks for an env
     model = SAC.load(folder / "policy.zip", env=venv, device="cpu")
     normalize = lambda obs: obs  # noqa: E731
@@ -219,15 +230,14 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
         print(f"{point['steps']:6d} steps, {point['train_wall_s'] / 60:5.1f} min: success {point['success_rate']:.0%} "
-              f"on {point['episodes']} layouts (training episodes, last 100: {point['training_success_last_100']}; median end distance {np.median(point['final_distance_m']) * 100:.1f} cm), "
-              f"falls {point['falls']}", flush=True)
+              f"on {point['episodes']} layouts (median end distance {np.median(point['final_distance_m']) * 100:.1f} cm; "
+              f"training episodes, last 100: {_share(point['training_success_last_100'])}), falls {point['falls']}",
+              flush=True)
     if folder is not None:
         model.save(folder / "policy.zip")
         if args.normalize:
             venv.save(str(folder / "normalize.pkl"))
-        (folder / "settings.json").write_text(json.dumps({"env": args.env, "fields": args.fields,
-                                                          "residual": args.residual, "seed": args.seed,
-                                                          "steps": int(model.num_timesteps)}))
+        (folder / "settings.json").write_text(json.dumps({**settings(args), "steps": int(model.num_timesteps)}))
     venv.close()
     return curve
 

@@ -25,7 +25,9 @@ def test_saved_policy_evaluates_as_in_training_and_demonstrations_fill_the_warm_
     done = run(*common, "--steps", "400", "--demo-steps", "300", "--eval-every", "400", "--fields", "tcp_position",
                "target", "--save", str(saved), "--json", str(curve))
     assert done.returncode == 0, done.stderr
-    point = json.loads(curve.read_text())["curve"][-1]
+    document = json.loads(curve.read_text())
+    assert document["demo_steps"] == 300 and document["algorithm"] == "SAC + HER"
+    point = document["curve"][-1]
     assert point["training_success_last_100"] > 0  # uniform random actions reach nothing in 400 steps
     again = tmp_path / "again.json"
     done = run(*common, "--evaluate", str(saved), "--json", str(again))
@@ -40,6 +42,7 @@ def test_saved_policy_evaluates_as_in_training_and_demonstrations_fill_the_warm_
     (["--steps", "100", "--demo-steps", "100"], "--demo-steps in"),
     (["--gamma", "1.0"], "--gamma in"),
     (["--fields", "elbow"], "accepted:"),
+    (["--evaluate", "/nonexistent/policy"], "holds no policy saved by --save"),
 ])
 def test_bad_options_end_in_one_line_and_status_2(args, message):
     done = run(*args)
