@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json  # noqa: E402
 
 
-PEERS = {"hoap_actions/PegInsert-v0": "PandaPickAndPlace-v3", "hoap_actions/Reach-v0": "PandaReach-v3"}
+PEERS = {"hoap_actions/PegInsert-v0": "PandaPickAndPlace-v3", "hoap_actions/Reach-v1": "PandaReach-v3"}
 
 
 def time_run(env_id: str, render: bool, steps: int, seed: int, actions_kind: str, **kwargs) -> float:

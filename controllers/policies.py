@@ -33,13 +33,13 @@ class RandomPolicy:
 
 
 class StraightReach:
-    """The straight-line reference for ``Reach-v0`` (ee_delta): the hand driven at the target at up to full
+    """The straight-line reference for ``Reach-v1`` (ee_delta): the hand driven at the target at up to full
     speed, gripper open. A baseline for learners, and demonstrations they can start from; it fails where a
     peg or the board stands in the straight line (the hand yields on contact)."""
 
     failure: str | None = None
     control_mode = "ee_delta"
-    env_ids = ("hoap_actions/Reach-v0",)
+    env_ids = ("hoap_actions/Reach-v1",)
 
     def __init__(self, env: gymnasium.Env) -> None:
         del env  # the goal vectors of the observation are all it reads

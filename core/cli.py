@@ -297,7 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="random: any env, joint_delta; scripted: the grasp-and-insert expert (true poses, straight "
                            "paths); phmm: grasp-and-insert from the overhead camera with paths synthesised by the learned "
                            "models (both PegInsert-v0, ee_delta); straight: the hand driven straight at the target "
-                           "(Reach-v0, ee_delta). Several run side by side on the same layouts (default: random)")
+                           "(Reach-v1, ee_delta). Several run side by side on the same layouts (default: random)")
     demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
     demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
     _robot_option(demo)
@@ -318,7 +318,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, imitation)")
     col.add_argument("--policy", required=True, choices=["random", "scripted", "phmm", "straight"],
-                     help="as for demo: random (any env), scripted and phmm (PegInsert-v0), straight (Reach-v0)")
+                     help="as for demo: random (any env), scripted and phmm (PegInsert-v0), straight (Reach-v1)")
     col.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
     _robot_option(col)
     col.add_argument("--episodes", type=_positive_int, default=10)

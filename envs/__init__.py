@@ -11,9 +11,9 @@ import gymnasium
 # id -> entry point; the time limit is the task's episode_steps (30 Hz), which the fall penalty uses too
 _SPECS: dict[str, str] = {
     "hoap_actions/PegInsert-v0": "hoap_actions.envs.tasks.peg_insert:PegInsertEnv",
-    "hoap_actions/Reach-v0": "hoap_actions.envs.tasks.reach:ReachEnv",
+    "hoap_actions/Reach-v1": "hoap_actions.envs.tasks.reach:ReachEnv",
 }
-_EPISODE_STEPS = {"hoap_actions/PegInsert-v0": 600, "hoap_actions/Reach-v0": 150}
+_EPISODE_STEPS = {"hoap_actions/PegInsert-v0": 600, "hoap_actions/Reach-v1": 150}
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
 
 

@@ -144,7 +144,7 @@ class Scene:
             pegs: list[np.ndarray] = []
             for _ in range(50 * self.n_pegs):
                 xy = rng.uniform(low, high)
-                if _distance_to_board(xy, board_xy, yaw) >= MIN_PEG_BOARD_GAP and all(
+                if distance_to_board(xy, board_xy, yaw) >= MIN_PEG_BOARD_GAP and all(
                     np.hypot(*(xy - other)) >= MIN_PEG_SPACING
                     and not in_forearm_strip(xy, other)
                     and not in_forearm_strip(other, xy)
@@ -192,7 +192,7 @@ class Scene:
         for i, xy in enumerate(pegs):
             if not _on_table(xy, PEG_RADIUS):
                 return f"peg {i} at {tuple(xy)} is off the table"
-            if _distance_to_board(xy, board_xy, layout.board_yaw) < PEG_RADIUS + PHYSICAL_GAP:
+            if distance_to_board(xy, board_xy, layout.board_yaw) < PEG_RADIUS + PHYSICAL_GAP:
                 return f"peg {i} at {tuple(xy)} overlaps the board"
             for k in range(i):
                 if np.hypot(*(xy - pegs[k])) < 2 * PEG_RADIUS + PHYSICAL_GAP:
@@ -292,7 +292,7 @@ def _board_on_table(board_xy: np.ndarray, yaw: float, margin: float) -> bool:
     return _on_table(_board_corners(board_xy, yaw), margin)
 
 
-def _distance_to_board(xy: np.ndarray, board_xy: np.ndarray, yaw: float) -> float:
+def distance_to_board(xy: np.ndarray, board_xy: np.ndarray, yaw: float) -> float:
     """Distance (m) from a point in the table plane to the board's rectangular outline (0 inside)."""
     local = _rotation(yaw).T @ (np.asarray(xy) - np.asarray(board_xy))
     outside = np.maximum(np.abs(local) - np.array(BOARD_SIZE[:2]) / 2, 0.0)

@@ -1,4 +1,4 @@
-"""A learning baseline with Stable-Baselines3: SAC with hindsight experience replay on ``Reach-v0`` (ee_delta).
+"""A learning baseline with Stable-Baselines3: SAC with hindsight experience replay on ``Reach-v1`` (ee_delta).
 
     pip install "hoap-actions[rl]"
     python examples/train_sb3.py [--steps 30000] [--eval-every 10000] [--json out/sb3_reach.json]
@@ -73,7 +73,7 @@ def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normali
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env", default="hoap_actions/Reach-v0")
+    parser.add_argument("--env", default="hoap_actions/Reach-v1")
     parser.add_argument("--steps", type=int, default=30000)
     parser.add_argument("--eval-every", type=int, default=10000)
     parser.add_argument("--seed", type=int, default=0)
@@ -95,11 +95,11 @@ def main() -> None:
     parser.add_argument("--gamma", type=float, default=0.95,
                         help="discount factor (0.95 as for Fetch reaches; a reach here takes 40-60 steps at 5 mm each)")
     parser.add_argument("--demo-steps", type=int, default=0, metavar="N",
-                        help="Reach-v0: the first N steps (part of --steps) follow the straight-line reference "
+                        help="Reach-v1: the first N steps (part of --steps) follow the straight-line reference "
                              "(hoap-actions' 'straight' policy) instead of uniform random actions, and learning "
                              "starts after them: demonstrations in the replay buffer")
     parser.add_argument("--residual", action="store_true",
-                        help="Reach-v0: the policy learns corrections added to the straight-line reach's actions "
+                        help="Reach-v1: the policy learns corrections added to the straight-line reach's actions "
                              "(residual RL; a plain replay buffer, as relabelled goals do not fit the base's actions)")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")

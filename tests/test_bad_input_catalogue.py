@@ -86,7 +86,7 @@ def test_row1_human_render_with_unreachable_display_raises_instead_of_exiting():
         import gymnasium, hoap_actions
         from hoap_actions.errors import DisplayUnavailableError
         try:
-            gymnasium.make("hoap_actions/Reach-v0", render_mode="human")
+            gymnasium.make("hoap_actions/Reach-v1", render_mode="human")
         except DisplayUnavailableError as error:
             print("raised:", error)
         """,
@@ -102,7 +102,7 @@ def test_row2_check_env_without_skip_render_check_reports_an_error_headless():
         import gymnasium, hoap_actions
         from gymnasium.utils.env_checker import check_env
         from hoap_actions.errors import DisplayUnavailableError
-        env = gymnasium.make("hoap_actions/Reach-v0")
+        env = gymnasium.make("hoap_actions/Reach-v1")
         try:
             check_env(env.unwrapped)
         except DisplayUnavailableError as error:
@@ -145,7 +145,7 @@ def test_human_mode_steps_and_renders_under_a_virtual_x_server(x_display):
         import gymnasium, hoap_actions, numpy as np
         from gymnasium.utils.env_checker import check_env
         from hoap_actions.errors import DisplayUnavailableError
-        env = gymnasium.make("hoap_actions/Reach-v0", render_mode="human")
+        env = gymnasium.make("hoap_actions/Reach-v1", render_mode="human")
         env.reset(seed=0)
         for _ in range(30):
             env.step(env.action_space.sample())
@@ -153,11 +153,11 @@ def test_human_mode_steps_and_renders_under_a_virtual_x_server(x_display):
         image = env.unwrapped.sim.render("front").rgb  # the window's OpenGL renderer
         print("distinct colours", len(np.unique(image.reshape(-1, 3), axis=0)))
         try:
-            gymnasium.make("hoap_actions/Reach-v0", render_mode="human")
+            gymnasium.make("hoap_actions/Reach-v1", render_mode="human")
         except DisplayUnavailableError as error:
             print("second window:", error)
         env.close()
-        check_env(gymnasium.make("hoap_actions/Reach-v0").unwrapped)  # makes and renders the human env too
+        check_env(gymnasium.make("hoap_actions/Reach-v1").unwrapped)  # makes and renders the human env too
         print("check_env passed")
         """,
         env=env,
@@ -179,7 +179,7 @@ def test_row3_render_sizes_outside_whole_1_to_4096_pixels_are_refused(size):
 
 
 def test_row3_accepted_render_size_gives_that_image():
-    env = gymnasium.make("hoap_actions/Reach-v0", render_mode="rgb_array", render_width=64, render_height=48)
+    env = gymnasium.make("hoap_actions/Reach-v1", render_mode="rgb_array", render_width=64, render_height=48)
     env.reset(seed=0)
     assert env.render().shape == (48, 64, 3)
     env.close()
@@ -341,7 +341,7 @@ def test_row13_bad_seeds_and_env_ids_exit_2_with_one_line(argv, message):
 
 
 def test_row13_scripted_policy_outside_its_envs_is_refused(no_long_work, capsys):
-    assert main(["demo", "--policy", "scripted", "--env", "hoap_actions/Reach-v0"]) == 2
+    assert main(["demo", "--policy", "scripted", "--env", "hoap_actions/Reach-v1"]) == 2
     assert "acts in ['hoap_actions/PegInsert-v0']" in capsys.readouterr().err
 
 
@@ -593,8 +593,8 @@ def test_row20_a_killed_records_partial_is_swept_by_the_next_run(tmp_path):
 
 
 def test_row21_cli_output_is_only_what_the_command_says():
-    result = cli("demo", "--env", "hoap_actions/Reach-v0", "--episodes", "1")
+    result = cli("demo", "--env", "hoap_actions/Reach-v1", "--episodes", "1")
     assert result.returncode == 0, result.stderr
-    assert result.stdout.startswith("random policy on hoap_actions/Reach-v0 (full robot): success rate")
+    assert result.stdout.startswith("random policy on hoap_actions/Reach-v1 (full robot): success rate")
     assert "argv" not in result.stdout
     assert result.stderr == ""  # no PyBullet build line, no placo/hppfcl DeprecationWarning

@@ -65,8 +65,8 @@ def test_bad_ids_and_policies_are_refused_before_any_episode(tmp_path, monkeypat
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
     with pytest.raises(InvalidInputError, match="not a Minari id"):
         collect("hoap_actions/PegInsert-v0", "scripted", 1, 0, "no version")
-    assert main(["collect", "--policy", "scripted", "--env", "hoap_actions/Reach-v0", "--dataset-id", "a/b-v0"]) == 2
-    assert "does not act in hoap_actions/Reach-v0" in capsys.readouterr().err
+    assert main(["collect", "--policy", "scripted", "--env", "hoap_actions/Reach-v1", "--dataset-id", "a/b-v0"]) == 2
+    assert "does not act in hoap_actions/Reach-v1" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
 
 

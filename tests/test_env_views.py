@@ -42,7 +42,7 @@ def test_parse_observation_refuses_another_envs_observation(peg_env):
 
 
 def test_reach_task_fields():
-    env = gymnasium.make("hoap_actions/Reach-v0")
+    env = gymnasium.make("hoap_actions/Reach-v1")
     try:
         obs, _ = env.reset(seed=1)
         fields = env.get_wrapper_attr("parse_observation")(obs)
@@ -77,7 +77,7 @@ def test_hand_status_follows_the_controller(peg_env):
     status = peg_env.get_wrapper_attr("hand_status")
     np.testing.assert_allclose(status.reference, peg_env.unwrapped.controller.hand.reference)
     assert not status.unreachable
-    joint_env = gymnasium.make("hoap_actions/Reach-v0")
+    joint_env = gymnasium.make("hoap_actions/Reach-v1")
     try:
         with pytest.raises(InvalidInputError, match="ee_delta"):
             joint_env.get_wrapper_attr("hand_status")

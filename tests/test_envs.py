@@ -90,7 +90,7 @@ def test_envs_in_one_process_are_independent(env_id):
 
 @pytest.mark.parametrize("mode", ["sync", "async"])
 def test_make_vec(mode):
-    envs = gymnasium.make_vec("hoap_actions/Reach-v0", num_envs=2, vectorization_mode=mode)
+    envs = gymnasium.make_vec("hoap_actions/Reach-v1", num_envs=2, vectorization_mode=mode)
     obs, info = envs.reset(seed=[1, 2])
     assert obs["observation"].shape[0] == 2
     assert not np.array_equal(obs["desired_goal"][0], obs["desired_goal"][1])
@@ -130,7 +130,7 @@ def test_unknown_env_id_is_a_clear_error():
 
 
 def test_closed_env_raises_and_close_twice_is_harmless():
-    env = gymnasium.make("hoap_actions/Reach-v0")
+    env = gymnasium.make("hoap_actions/Reach-v1")
     env.reset(seed=0)
     env.close()
     env.close()

@@ -155,7 +155,7 @@ def test_same_seed_same_episode(env):
 
 def test_unknown_robot_model_is_refused_with_the_accepted_ones():
     with pytest.raises(InvalidInputError, match="fixed_legs"):
-        gymnasium.make("hoap_actions/Reach-v0", robot="wheeled")
+        gymnasium.make("hoap_actions/Reach-v1", robot="wheeled")
 
 
 def test_ik_moves_the_hand_but_neither_legs_nor_pelvis():

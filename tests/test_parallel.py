@@ -27,8 +27,8 @@ def local_ray():
 def test_episodes_on_ray_are_the_serial_ones(local_ray):
     policies = {"random": ("random", {})}
     seeds = [3, 4, 5]
-    serial = compare_policies("hoap_actions/Reach-v0", policies, seeds)["random"]
-    on_ray = compare_policies("hoap_actions/Reach-v0", policies, seeds, workers=2, ray_address=local_ray)["random"]
+    serial = compare_policies("hoap_actions/Reach-v1", policies, seeds)["random"]
+    on_ray = compare_policies("hoap_actions/Reach-v1", policies, seeds, workers=2, ray_address=local_ray)["random"]
     assert summarise(on_ray, timings=False) == summarise(serial, timings=False)
     assert [r.seed for r in on_ray] == seeds
 

@@ -73,7 +73,7 @@ def test_the_policy_needs_peg_insert_with_ee_delta():
     with pytest.raises(InvalidInputError, match="ee_delta"):
         PHMMPolicy(env)
     env.close()
-    env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
     with pytest.raises(InvalidInputError, match="PegInsert"):
         PHMMPolicy(env)
     env.close()

@@ -14,7 +14,7 @@ pytest.importorskip("moviepy")
 def test_record_video_writes_the_close_up_of_an_episode(tmp_path):
     from gymnasium.wrappers import RecordVideo
 
-    env = RecordVideo(gymnasium.make("hoap_actions/Reach-v0", render_mode="rgb_array", camera="closeup"),
+    env = RecordVideo(gymnasium.make("hoap_actions/Reach-v1", render_mode="rgb_array", camera="closeup"),
                       str(tmp_path), episode_trigger=lambda episode: episode == 0, disable_logger=True)
     env.reset(seed=0)
     env.action_space.seed(0)

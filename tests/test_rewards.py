@@ -32,7 +32,7 @@ def test_a_fall_costs_more_than_any_episode_without_one(env_id, reward_type):
 
 
 def test_rewards_are_vectorised_with_one_info_per_goal_as_her_passes_them():
-    env = gymnasium.make("hoap_actions/Reach-v0", reward_type="sparse")
+    env = gymnasium.make("hoap_actions/Reach-v1", reward_type="sparse")
     try:
         base = env.unwrapped
         obs, _ = env.reset(seed=0)

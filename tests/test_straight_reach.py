@@ -1,4 +1,4 @@
-"""The straight-line reach: the reference (and demonstrator) for learners on Reach-v0."""
+"""The straight-line reach: the reference (and demonstrator) for learners on Reach-v1."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def test_action_is_the_clipped_step_towards_the_target_with_the_gripper_open():
 def test_it_reaches_most_targets_and_never_falls():
     """It reaches 84 % of the validation layouts (benchmarks/results/NOTES.md); of layouts 0-2, two have a clear
     line (reached within 1 cm) and the third ends short; never a fall."""
-    env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
     policy = StraightReach(env)
     end = []
     for seed in (0, 1, 2):

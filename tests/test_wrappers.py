@@ -16,7 +16,7 @@ FIELDS = ["tcp_position", "target", "peg_positions", "hole_positions"]
 
 @pytest.fixture
 def reach():
-    env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
     yield env
     env.close()
 
@@ -38,7 +38,7 @@ def test_rewards_and_episodes_are_those_of_the_inner_env():
     actions = np.random.default_rng(0).uniform(-1, 1, (12, 4)).astype(np.float32)
     runs = []
     for wrap in (False, True):
-        env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+        env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
         env = SelectObservation(env, FIELDS) if wrap else env
         obs, _ = env.reset(seed=11)
         trace = [obs["achieved_goal"]]
@@ -80,7 +80,7 @@ def test_a_zero_residual_replays_the_base_policy_bit_for_bit():
 
     traces = []
     for residual in (False, True):
-        env = gymnasium.make("hoap_actions/Reach-v0", control_mode="ee_delta")
+        env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
         base = StraightReach(env)
         env = ResidualAction(env, base) if residual else env
         obs, _ = env.reset(seed=5)
