@@ -22,8 +22,8 @@ def test_action_is_the_clipped_step_towards_the_target_with_the_gripper_open():
 
 
 def test_it_reaches_most_targets_and_never_falls():
-    """It reaches 84 % of the validation layouts (benchmarks/results/NOTES.md); of layouts 0-2, two have a clear
-    line (reached within 1 cm) and the third ends short; never a fall."""
+    """It reaches 94 % of the validation layouts (benchmarks/results/NOTES.md): at least two of layouts 0-2 within
+    1 cm; never a fall."""
     env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
     policy = StraightReach(env)
     end = []
