@@ -26,6 +26,7 @@ from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 from hoap_actions.primitives.tracking.action_tracker import ActionTracker, TrackedFrame
 from hoap_actions.primitives.tracking.body_model import BodyModel
 from hoap_actions.primitives.tracking.edges import edge_image
+from hoap_actions.primitives.tracking.objects import ObjectLocator
 from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
 
 __all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
@@ -86,7 +87,8 @@ class TrackResult:
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                   seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
                   more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
-                  silhouette: bool = True, progress: Callable[[int, int], None] | None = None) -> TrackResult:
+                  silhouette: bool = True, object_cue: bool = True,
+                  progress: Callable[[int, int], None] | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
@@ -114,6 +116,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         body = BodyModel(models.marker_names_, torso_base=scene.torso_base(), hidden_below_z=TABLE_TOP_Z)
         views = (camera, *more_cameras)
         tracker = ActionTracker(models, body, views, n_particles=particles, random_state=seed)
+        locate = ObjectLocator(camera, scene.config.object_size / 2.0) if object_cue else lambda image: None
 
         def noisy(images: list[np.ndarray]) -> list[np.ndarray]:
             if image_noise == 0:
@@ -130,7 +133,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
             started = time.perf_counter()
             edges = [edge_image(image) for image in images]
             masks = None if subtractors is None else [subtract(image) for subtract, image in zip(subtractors, images)]
-            frames.append(tracker.step(edges, masks))
+            frames.append(tracker.step(edges, masks, locate(images[0])))
             spent += time.perf_counter() - started
             if keep_images:
                 kept.append(edges[0])

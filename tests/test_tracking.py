@@ -179,6 +179,25 @@ def test_tracks_a_reach_better_than_standing_still(models, reach):
     assert np.median(end_errors) < 0.06
 
 
+def test_the_seen_block_draws_the_reach_goal_towards_it(models, reach):
+    """With the block seen where the learned hand-to-object offset puts the reach's true end, the estimated
+    end is nearer the truth than without it, for each of three seeds; a manipulation starts at the block."""
+    approach, phi, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    edges = list(images(body, movement))
+    errors = {}
+    for seen in (False, True):
+        for seed in range(3):
+            tracker = ActionTracker(models, body, CAMERA, n_particles=200, random_state=seed)
+            block = np.r_[phi[3:5] - tracker.hand_from_object[:2], 0.025]
+            frames = [tracker.step(G, object_position=block if seen else None) for G in edges]
+            errors[seen, seed] = np.linalg.norm(frames[-1].end_mean[:2] - phi[3:5])
+    assert all(errors[True, seed] < errors[False, seed] for seed in range(3))
+    manipulation = next(cid for cid, c in models.classes_.items() if c.kind == "manipulation")
+    tracker._switch(np.arange(5), np.full(5, manipulation))
+    np.testing.assert_allclose(tracker.start[:5, :2], np.tile(block[:2], (5, 1)))
+
+
 def test_same_seed_same_track(models, reach):
     _, _, movement = reach
     body = BodyModel(models.marker_names_, TORSO_BASE)
@@ -217,5 +236,8 @@ def test_tracker_bad_input(models):
         tracker.step(np.full((240, 320), np.nan, np.float32))
     with pytest.raises(InvalidInputError, match="foreground mask must be"):
         tracker.step(np.zeros((240, 320), np.float32), np.zeros((24, 32), np.float32))
+    for bad in (np.zeros(2), np.array([0.0, np.nan, 0.0])):
+        with pytest.raises(InvalidInputError, match="object_position"):
+            tracker.step(np.zeros((240, 320), np.float32), object_position=bad)
     with pytest.raises(InvalidInputError, match="silhouette_sigma"):
         ActionTracker(models, body, CAMERA, silhouette_sigma=0.0)

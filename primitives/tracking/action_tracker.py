@@ -17,6 +17,9 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
 * A small share of particles (``REDRAW_SHARE`` per frame) draws its end afresh from its class's
   training effects: the early frames of a reach say little about its goal, and once the particles
   have agreed on a wrong one, diffusion alone cannot carry them across the table to the right one.
+* When the block is seen (:class:`~hoap_actions.primitives.tracking.objects.ObjectLocator`), an
+  approach's redrawn end lies at the block, offset as the hand's training ends are from the objects'
+  training starts, and a manipulation starts at the block: the image proposes where the arm is going.
 * Each particle's pose strays from the state's mean by an offset that drifts within the state's
   learned spread (the PHMM's observation density).
 
@@ -42,7 +45,7 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.base import check_is_fitted
-from hoap_actions.primitives.discovery import MANIPULATION
+from hoap_actions.primitives.discovery import APPROACH, MANIPULATION
 from hoap_actions.primitives.tracking.body_model import BodyModel, ProjectedBodies, Projector
 
 __all__ = ["ActionTracker", "TrackedFrame"]
@@ -58,6 +61,7 @@ SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (
 SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
+OBJECT_END_SPREAD_M = 0.045  # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
@@ -107,6 +111,10 @@ class ActionTracker:
         observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
         silhouette_sigma: the silhouette term's sigma, used when :meth:`step` is given foreground masks.
         random_state: seed of the filter's draws.
+
+    Attributes:
+        hand_from_object: (3,) m, where an approach ends relative to the block (x, y; z is the end's height),
+            learned from the models' training effects; used when :meth:`step` is told where the block is.
     """
 
     def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
@@ -127,6 +135,7 @@ class ActionTracker:
         self.end_diffusion_m = float(end_diffusion_m)
         self.silhouette_sigma = float(silhouette_sigma)
         self._rng = np.random.default_rng(random_state)
+        self._object: np.ndarray | None = None
         self._ids = np.array(sorted(models.classes_))
         self._n_markers = len(models.marker_names_)
         self._grammar_rows = self._successor_table()
@@ -134,6 +143,7 @@ class ActionTracker:
         self._position_sd = {cid: np.sqrt(model.phmm.covars_[:, np.arange(width), np.arange(width)]
                                           if model.phmm.covariance_type == "full" else model.phmm.covars_[:, :width])
                              for cid, model in models.classes_.items()}
+        self.hand_from_object = self._hand_offset_from_object()
         self._end_box = {}
         for cid, model in models.classes_.items():
             ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
@@ -148,6 +158,20 @@ class ActionTracker:
         targets = np.array([*symbols, EXIT])
         table = {int(s): grammar.transmat_[k + 1, 1:] for k, s in enumerate(symbols)}
         return targets, grammar.transmat_[0, 1:], table
+
+    def _hand_offset_from_object(self) -> np.ndarray:
+        """Where an approach's end (the hand) lies from the object it reaches, learned from the training
+        effects: the approaches' mean end minus the manipulations' mean start (weighted by their counts) in
+        x and y; the approaches' mean end height in z."""
+        classes = self.models.classes_.values()
+        approach = [c.centre[3:] for c in classes if c.kind == APPROACH]
+        starts = [(len(c.phmm.train_phi_), c.centre[:3]) for c in classes if c.kind == MANIPULATION]
+        if not approach or not starts:
+            return np.zeros(3)
+        counts = np.array([n for n, _ in starts], float)
+        object_start = np.sum(counts[:, None] * np.array([x for _, x in starts]), axis=0) / counts.sum()
+        hand = np.mean(approach, axis=0)
+        return np.array([*(hand[:2] - object_start[:2]), hand[2]])
 
     def reset(self) -> None:
         """Particles drawn from the grammar's first classes at their first state, ends from training effects."""
@@ -176,11 +200,19 @@ class ActionTracker:
 
     # ----------------------------------------------------------------------------- the filter
     def step(self, edges: np.ndarray | Sequence[np.ndarray],
-             foreground: np.ndarray | Sequence[np.ndarray] | None = None) -> TrackedFrame:
+             foreground: np.ndarray | Sequence[np.ndarray] | None = None,
+             object_position: np.ndarray | None = None) -> TrackedFrame:
         """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`) and, when given,
-        the foreground mask(s) (:class:`~hoap_actions.primitives.tracking.silhouette.BackgroundSubtractor`), resample."""
+        the foreground mask(s) (:class:`~hoap_actions.primitives.tracking.silhouette.BackgroundSubtractor`), resample.
+        ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen)."""
         images = self._per_camera(edges, "edge image")
         masks = None if foreground is None else self._per_camera(foreground, "foreground mask")
+        if object_position is not None:
+            object_position = np.asarray(object_position, dtype=float)
+            if object_position.shape != (3,) or not np.all(np.isfinite(object_position)):
+                raise InvalidInputError(f"object_position must be a finite (3,) position in m or None; "
+                                        f"got {object_position!r}")
+        self._object = object_position
         self._propagate()
         markers = self.markers()
         likelihood = self._log_likelihood(markers, images, masks)
@@ -233,7 +265,9 @@ class ActionTracker:
             step = self._rng.normal(0.0, 1.0, (chosen.size, 3)) * (self.end_diffusion_m * cooling)[:, None]
             self.end[chosen] = np.clip(self.end[chosen] + step, *self._end_box[cid])
             redraw = chosen[self._rng.random(chosen.size) < REDRAW_SHARE]
-            if redraw.size:
+            if redraw.size and model.kind == APPROACH and self._object is not None:
+                self.end[redraw] = self._end_at_object(redraw.size)
+            elif redraw.size:
                 effects = self._training_effects(cid, redraw.size)
                 fresh = effects[:, 3:] - effects[:, :3] + self.start[redraw] if model.kind == MANIPULATION \
                     else effects[:, 3:]  # a manipulation's end: a learned displacement from its own start
@@ -243,6 +277,11 @@ class ActionTracker:
             successors.append(self._rng.choice(targets, size=ending.size, p=table[cid] / table[cid].sum()))
         if leaving:  # after every class has moved: a particle that changes class moves once per frame
             self._switch(np.concatenate(leaving), np.concatenate(successors))
+
+    def _end_at_object(self, n: int) -> np.ndarray:
+        """``n`` approach ends drawn around the hand's learned place at the seen block."""
+        centre = np.array([*(self._object[:2] + self.hand_from_object[:2]), self.hand_from_object[2]])
+        return centre + self._rng.normal(0.0, OBJECT_END_SPREAD_M, (n, 3))
 
     def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
         """Particles that finished their class start the next one where the last ended (EXIT: rest there).
@@ -259,7 +298,10 @@ class ActionTracker:
             chosen = particles[rows]
             effects = self._training_effects(int(cid), chosen.size)
             new = self.models.classes_[int(cid)]
-            if new.kind == MANIPULATION:  # the object moves by a learned displacement
+            if new.kind == MANIPULATION and self._object is not None:  # it starts at the seen block
+                start = np.tile([*self._object[:2], new.centre[2]], (chosen.size, 1))
+                end = start + effects[:, 3:] - effects[:, :3]
+            elif new.kind == MANIPULATION:  # the object moves by a learned displacement
                 previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
                 start = self.end[chosen].copy()
                 start[:, 2] += new.centre[2] - previous_end_height

@@ -1,0 +1,44 @@
+"""The block located by its colour in the demonstration camera and taken back onto the table."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DemoScene
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.tracking.objects import ObjectLocator
+
+
+@pytest.fixture(scope="module")
+def scene():
+    scene = DemoScene()
+    yield scene
+    scene.close()
+
+
+@pytest.mark.parametrize("xy", [(0.0, 0.0), (0.12, -0.25), (-0.1, 0.3)])
+def test_the_block_is_found_where_it_stands(scene, xy):
+    scene.reset(np.array(xy))
+    locate = ObjectLocator(DEMONSTRATOR_CAMERA, scene.config.object_size / 2.0)
+    found = locate(scene.render(DEMONSTRATOR_CAMERA).rgb)
+    assert found is not None
+    assert np.linalg.norm(found[:2] - xy) < 0.015  # the visible faces' centroid, not the hidden centre
+    assert found[2] == pytest.approx(scene.config.object_size / 2.0)
+
+
+def test_no_block_in_view_is_none_and_the_homography_is_exact(scene):
+    locate = ObjectLocator(DEMONSTRATOR_CAMERA, 0.025)
+    assert locate(scene.render_background(DEMONSTRATOR_CAMERA).rgb) is None
+    points = np.array([[0.1, -0.2, 0.025], [-0.2, 0.3, 0.025]])
+    np.testing.assert_allclose(locate.to_plane(DEMONSTRATOR_CAMERA.project(points)), points, atol=1e-6)
+
+
+def test_bad_images_are_refused():
+    locate = ObjectLocator(DEMONSTRATOR_CAMERA, 0.025)
+    with pytest.raises(InvalidInputError, match="colour image"):
+        locate(np.zeros((DEMONSTRATOR_CAMERA.height, DEMONSTRATOR_CAMERA.width), np.uint8))
+    with pytest.raises(InvalidInputError, match="colour image"):
+        locate(np.zeros((10, 10, 3), np.uint8))
+    with pytest.raises(InvalidInputError, match="plane_z"):
+        ObjectLocator(DEMONSTRATOR_CAMERA, float("nan"))
