@@ -1,6 +1,7 @@
 """The simulated world (PyBullet) and its Gymnasium environments.
 
-Ids are namespaced ``hoap_actions/<Task>-v0`` and registered by :func:`register_envs`, which
+Ids are namespaced ``hoap_actions/<Task>-v<N>`` (``Reach-v1``: targets drawn where the hand fits; v0 drew
+some it cannot hold) and registered by :func:`register_envs`, which
 ``import hoap_actions`` calls.
 """
 
