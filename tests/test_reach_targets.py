@@ -26,6 +26,16 @@ def test_known_targets(target, fits):
     assert hand_fits(np.array(target), LAYOUT) is fits
 
 
+def _board_distance(xy: np.ndarray, holes: np.ndarray) -> float:
+    """Distance from ``xy`` to the board's outline, the board placed from its observed hole row alone."""
+    row = holes[-1, :2] - holes[0, :2]
+    along = row / np.linalg.norm(row)
+    local = xy - holes[:, :2].mean(axis=0)
+    local = np.array([local @ np.array([along[1], -along[0]]), local @ along])  # across the row, along it
+    outside = np.maximum(np.abs(local) - np.array(scene.BOARD_SIZE[:2]) / 2, 0.0)
+    return float(np.hypot(*outside))
+
+
 def test_every_drawn_target_fits_its_layout_and_low_targets_still_occur():
     env = gymnasium.make("hoap_actions/Reach-v1")
     heights = []
@@ -36,6 +46,8 @@ def test_every_drawn_target_fits_its_layout_and_low_targets_still_occur():
         for peg in fields["peg_positions"]:
             if np.hypot(*(target[:2] - peg[:2])) < scene.PEG_RADIUS + HAND_REACH:
                 assert target[2] >= scene.PEG_LENGTH + HAND_DEPTH
+        if _board_distance(target[:2], fields["hole_positions"]) < HAND_REACH:
+            assert target[2] >= scene.BOARD_SIZE[2] + HAND_DEPTH
         heights.append(target[2])
     env.close()
     assert min(heights) < 0.05 < max(heights)  # the 3-10 cm range is still drawn from, not only its top
@@ -44,3 +56,10 @@ def test_every_drawn_target_fits_its_layout_and_low_targets_still_occur():
 def test_reach_v0_is_gone_with_a_pointer_to_v1():
     with pytest.raises(gymnasium.error.DeprecatedEnv, match="Reach-v1"):
         gymnasium.make("hoap_actions/Reach-v0")
+
+
+def test_the_board_placed_from_its_holes_is_the_layouts_board():
+    holes = np.array([[*xy, 0.0] for xy in scene.HOLE_LOCAL_XY + np.array(LAYOUT.board_xy)])  # yaw 0
+    for xy in ((0.03, 0.0), (0.06, 0.0), (0.03, 0.09), (-0.01, -0.07)):
+        assert _board_distance(np.array(xy), holes) == pytest.approx(
+            scene.distance_to_board(np.array(xy), np.array(LAYOUT.board_xy), LAYOUT.board_yaw), abs=1e-12)
