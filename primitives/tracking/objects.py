@@ -21,8 +21,7 @@ __all__ = ["ObjectLocator"]
 # The demonstration block (demo_object.urdf, RGB 0.85 0.25 0.20) in OpenCV's HSV (hue 0-180): rendered at hue
 # 0-6 and saturation 190-200; the skin of the hands and head is at hue 12, saturation 85, the wooden table at
 # hue 16, saturation 106 (demonstration camera, validation recording).
-BLOCK_HSV_LOW = ((0, 150, 60), (172, 150, 60))  # two ranges: red wraps round hue 0
-BLOCK_HSV_HIGH = ((8, 255, 255), (180, 255, 255))
+BLOCK_HSV_RANGES = (((0, 150, 60), (8, 255, 255)), ((172, 150, 60), (180, 255, 255)))  # (low, high); red wraps round hue 0
 MIN_BLOB_PX = 6  # a 5 cm block is about 190 px at 320 x 240; fewer than this is noise or a sliver behind the hand
 PLANE_GRID_M = 0.5  # m, half-size of the square of plane points the homography is fitted on
 
@@ -38,8 +37,7 @@ class ObjectLocator:
     """
 
     def __init__(self, camera: Projector, plane_z: float,
-                 hsv_ranges: tuple[tuple[tuple[int, int, int], tuple[int, int, int]], ...] = tuple(
-                     zip(BLOCK_HSV_LOW, BLOCK_HSV_HIGH))) -> None:
+                 hsv_ranges: tuple[tuple[tuple[int, int, int], tuple[int, int, int]], ...] = BLOCK_HSV_RANGES) -> None:
         if not np.isfinite(plane_z):
             raise InvalidInputError(f"plane_z must be a finite height in m; got {plane_z!r}")
         self.camera, self.plane_z = camera, float(plane_z)
