@@ -1,4 +1,5 @@
-"""Gymnasium wrappers for learners: part of an env's observation, or actions on top of a base policy's."""
+"""Gymnasium wrappers for learners: part of an env's observation, actions on top of a base policy's, or an
+action held for several steps."""
 
 from __future__ import annotations
 
@@ -59,18 +60,24 @@ class SelectObservation(_ForwardsReward, gymnasium.ObservationWrapper, gymnasium
 
 
 class ResidualAction(_ForwardsReward, gymnasium.Wrapper):
-    """The learner's action is added to a base policy's, and the sum clipped to the action space (residual RL).
+    """``scale`` times the learner's action is added to a base policy's, and the sum clipped to the action
+    space (residual RL).
 
-    Why: a learner that starts from a competent controller has only its corrections to learn. The base sees
+    Why: a learner that starts from a competent controller has only its corrections to learn; a ``scale``
+    below 1 bounds how far an untrained or noisy correction can pull the base off its course. The base sees
     each observation the env returns; goal relabelling (HER) does not fit, since the base acted on the goal
     the episode really had.
     """
 
-    def __init__(self, env: gymnasium.Env, base: Callable[[dict[str, np.ndarray]], np.ndarray]) -> None:
+    def __init__(self, env: gymnasium.Env, base: Callable[[dict[str, np.ndarray]], np.ndarray],
+                 scale: float = 1.0) -> None:
         if not isinstance(env.action_space, spaces.Box):
             raise InvalidInputError(f"a residual needs a Box action space; this env's is {env.action_space}")
+        if not (np.isfinite(scale) and scale > 0):
+            raise InvalidInputError(f"scale={scale!r} must be a positive finite number")
         super().__init__(env)
         self.base = base
+        self.scale = float(scale)
         self._last_obs: dict[str, np.ndarray] | None = None
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -85,8 +92,31 @@ class ResidualAction(_ForwardsReward, gymnasium.Wrapper):
         if np.shape(action) != space.shape:
             raise InvalidInputError(f"action has shape {np.shape(action)}; a residual must have the action space's "
                                     f"shape {space.shape}")
-        total = np.clip(np.asarray(self.base(self._last_obs), dtype=float) + np.asarray(action, dtype=float),
+        total = np.clip(np.asarray(self.base(self._last_obs), dtype=float) + self.scale * np.asarray(action, dtype=float),
                         space.low, space.high).astype(space.dtype)
         obs, reward, terminated, truncated, info = self.env.step(total)
         self._last_obs = obs
+        return obs, reward, terminated, truncated, info
+
+
+class RepeatAction(_ForwardsReward, gymnasium.Wrapper):
+    """Each action is applied for ``repeat`` steps of the env (fewer when the episode ends first); the last
+    step's observation, reward and info are returned.
+
+    Why: a learner deciding every second step explores twice as far per decision and has half as many
+    decisions to credit a reward to. The last reward, not a sum, keeps a goal env's reward equal to
+    ``compute_reward`` of the returned achieved goal, which hindsight relabelling relies on.
+    """
+
+    def __init__(self, env: gymnasium.Env, repeat: int) -> None:
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
+            raise InvalidInputError(f"repeat={repeat!r} must be a whole number >= 1")
+        super().__init__(env)
+        self.repeat = int(repeat)
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        for _ in range(self.repeat):
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            if terminated or truncated:
+                break
         return obs, reward, terminated, truncated, info

@@ -17,7 +17,8 @@ time. The default layouts, 50000-50049, chose the settings here (a validation sp
 figure names fresh seeds declared before its run (``benchmarks/results/NOTES.md``). Variants, each
 measured there: ``--fields`` (a part of the observation, ``SelectObservation``), ``--gamma``,
 ``--demo-steps`` (the straight-line reach takes the first steps), ``--residual`` (corrections to it,
-``ResidualAction``).
+``ResidualAction``, ``--residual-scale``), ``--repeat`` (each decision held for several steps, ``RepeatAction``;
+``--steps`` still counts the env's steps).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
 from hoap_actions.controllers.policies import StraightReach
-from hoap_actions.envs.wrappers import ResidualAction, SelectObservation
+from hoap_actions.envs.wrappers import RepeatAction, ResidualAction, SelectObservation
 from hoap_actions.errors import HoapActionsError
 from hoap_actions.outputs import claimed_directory, claimed_file
 
@@ -42,18 +43,21 @@ VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
 CONTROL_MODE = "ee_delta"
 
 
-def make_env(env_id: str, fields: list[str] | None, residual: bool = False) -> gymnasium.Env:
+def make_env(env_id: str, fields: list[str] | None, residual: float = 0.0, repeat: int = 1) -> gymnasium.Env:
     """The env a policy trains and is evaluated on: the whole observation, or only ``fields`` of it; with
-    ``residual``, the policy's actions are corrections to the straight-line reach's."""
+    ``residual`` > 0, the policy's actions times ``residual`` are corrections to the straight-line reach's;
+    each decision held for ``repeat`` steps."""
     env = gymnasium.make(env_id, control_mode=CONTROL_MODE)
     if residual:
-        env = ResidualAction(env, StraightReach(env))
+        env = ResidualAction(env, StraightReach(env), scale=residual)
+    if repeat > 1:
+        env = RepeatAction(env, repeat)
     return SelectObservation(env, fields) if fields else env
 
 
 def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normalize=lambda obs: obs,
-             residual: bool = False) -> dict:
-    env = make_env(env_id, fields, residual)
+             residual: float = 0.0, repeat: int = 1) -> dict:
+    env = make_env(env_id, fields, residual, repeat)
     successes = falls = 0
     final_distances = []
     for seed in seeds:
@@ -101,6 +105,11 @@ def main() -> None:
     parser.add_argument("--residual", action="store_true",
                         help="Reach-v1: the policy learns corrections added to the straight-line reach's actions "
                              "(residual RL; a plain replay buffer, as relabelled goals do not fit the base's actions)")
+    parser.add_argument("--residual-scale", type=float, default=1.0, metavar="S",
+                        help="with --residual: the share of the policy's action added to the straight line's "
+                             "(default 1: corrections as large as the actions)")
+    parser.add_argument("--repeat", type=int, default=1, metavar="K",
+                        help="hold each of the policy's actions for K steps of the env (RepeatAction; default 1)")
     parser.add_argument("--normalize", action="store_true",
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
@@ -110,9 +119,11 @@ def main() -> None:
         raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
 
     if min(args.steps, args.eval_every, args.eval_episodes, args.torch_threads) < 1 or args.eval_first_seed < 0 \
-            or not 0.0 < args.gamma < 1.0 or not 0 <= args.demo_steps < args.steps:
+            or not 0.0 < args.gamma < 1.0 or not 0 <= args.demo_steps < args.steps \
+            or not 1 <= args.repeat <= args.eval_every or not 0.0 < args.residual_scale <= 1.0:
         print("error: --steps, --eval-every, --eval-episodes and --torch-threads must be >= 1, --eval-first-seed "
-              ">= 0, --gamma in (0, 1) and --demo-steps in [0, --steps)", file=sys.stderr)
+              ">= 0, --gamma in (0, 1), --demo-steps in [0, --steps), --repeat in [1, --eval-every] and "
+              "--residual-scale in (0, 1]", file=sys.stderr)
         raise SystemExit(2)
     if (args.demo_steps or args.residual) and args.env not in StraightReach.env_ids:
         print(f"error: --demo-steps and --residual use the straight-line reach, which acts in "
@@ -122,7 +133,7 @@ def main() -> None:
     if args.evaluate is not None:
         try:
             saved = json.loads((args.evaluate / "settings.json").read_text())
-            make_env(saved["env"], saved["fields"], saved["residual"]).close()  # the env it acted in can be made
+            make_env(saved["env"], saved["fields"], *_residual_and_repeat(saved)).close()  # the env it acted in can be made
         except (OSError, ValueError, KeyError, TypeError, HoapActionsError):
             print(f"error: {args.evaluate} holds no policy saved by --save (a readable settings.json naming its env)",
                   file=sys.stderr)
@@ -159,7 +170,14 @@ def settings(args: argparse.Namespace) -> dict:
     return {"env": args.env, "control_mode": CONTROL_MODE,
             "algorithm": "SAC (residual on the straight-line reach)" if args.residual else "SAC + HER",
             "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma, "demo_steps": args.demo_steps,
-            "residual": args.residual, "seed": args.seed}
+            "residual": args.residual, "residual_scale": args.residual_scale if args.residual else None,
+            "repeat": args.repeat, "seed": args.seed}
+
+
+def _residual_and_repeat(saved: dict) -> tuple[float, int]:
+    """The residual's scale (0: none) and the action repeat a saved policy acted with (older saves: 1 and 1)."""
+    residual = (saved.get("residual_scale") or 1.0) if saved["residual"] else 0.0
+    return residual, saved.get("repeat", 1)
 
 
 def _share(value: float | None) -> str:
@@ -171,8 +189,8 @@ def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
     from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    residual = saved["residual"]
-    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual)])  # HER's buffer asks for an env
+    residual, repeat = _residual_and_repeat(saved)
+    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual, repeat)])  # HER's buffer asks for an env
     model = SAC.load(folder / "policy.zip", env=venv, device="cpu")
     normalize = lambda obs: obs  # noqa: E731
     if (folder / "normalize.pkl").is_file():
@@ -180,7 +198,7 @@ def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
         stats.training = False
         normalize = stats.normalize_obs
     try:
-        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize, residual)
+        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize, residual, repeat)
     finally:
         venv.close()
 
@@ -194,8 +212,10 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(args.torch_threads)
+    residual = args.residual_scale if args.residual else 0.0
     venv = make_vec_env(make_env, n_envs=1, seed=args.seed,
-                        env_kwargs={"env_id": args.env, "fields": args.fields, "residual": args.residual})
+                        env_kwargs={"env_id": args.env, "fields": args.fields, "residual": residual,
+                                    "repeat": args.repeat})
     normalize = lambda obs: obs  # noqa: E731
     if args.normalize:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
@@ -209,7 +229,7 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
         """SAC whose warm-up steps follow the straight-line reference (when given) instead of uniform noise."""
 
         def _sample_action(self, learning_starts, action_noise=None, n_envs=1):
-            if reference is None or self.num_timesteps >= args.demo_steps:
+            if reference is None or self.num_timesteps * args.repeat >= args.demo_steps:
                 return super()._sample_action(learning_starts, action_noise, n_envs)
             obs = self._last_original_obs if self._vec_normalize_env is not None else self._last_obs
             action = np.stack([reference({key: value[i] for key, value in obs.items()}) for i in range(n_envs)])
@@ -218,14 +238,15 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
     model = SACFromDemonstrations(
                 "MultiInputPolicy", venv, replay_buffer_class=None if args.residual else HerReplayBuffer,
                 replay_buffer_kwargs=None if args.residual else {"n_sampled_goal": 4, "goal_selection_strategy": "future"},
-                learning_starts=max(1000, args.demo_steps), learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
+                learning_starts=max(1000, args.demo_steps // args.repeat), learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
                 policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
     curve, start = [], time.perf_counter()
     for _ in range(0, args.steps, args.eval_every):
-        model.learn(args.eval_every, reset_num_timesteps=False)
-        point = {"steps": int(model.num_timesteps), "train_wall_s": time.perf_counter() - start,
+        model.learn(args.eval_every // args.repeat, reset_num_timesteps=False)  # decisions; the env's steps <= K times
+        point = {"steps": int(model.num_timesteps) * args.repeat, "decisions": int(model.num_timesteps),
+                 "train_wall_s": time.perf_counter() - start,
                  "training_success_last_100": float(np.mean(model.ep_success_buffer)) if model.ep_success_buffer else None,
-                 **evaluate(model, args.env, args.fields, eval_seeds, normalize, args.residual)}
+                 **evaluate(model, args.env, args.fields, eval_seeds, normalize, residual, args.repeat)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
@@ -237,7 +258,7 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
         model.save(folder / "policy.zip")
         if args.normalize:
             venv.save(str(folder / "normalize.pkl"))
-        (folder / "settings.json").write_text(json.dumps({**settings(args), "steps": int(model.num_timesteps)}))
+        (folder / "settings.json").write_text(json.dumps({**settings(args), "steps": int(model.num_timesteps) * args.repeat}))
     venv.close()
     return curve
 

@@ -113,3 +113,58 @@ def test_the_sum_is_clipped_and_step_needs_a_reset(reach):
     wrapped.step(np.array([0.5, -0.5, 0.25, 0.5], np.float32))
     np.testing.assert_allclose(sent[0], [1.0, -1.0, 0.25, -0.5])
     np.testing.assert_array_equal(wrapped.compute_reward(np.zeros(3), np.zeros(3), {}), 0.0)
+
+
+def test_a_scaled_residual_adds_that_share_of_the_learners_action(reach):
+    from hoap_actions.envs.wrappers import ResidualAction
+
+    sent = []
+
+    class Recorder(gymnasium.Wrapper):
+        def step(self, action):
+            sent.append(np.array(action))
+            return self.env.step(action)
+
+    wrapped = ResidualAction(Recorder(reach), lambda obs: np.array([0.5, -0.5, 0.0, 0.0]), scale=0.25)
+    wrapped.reset(seed=0)
+    wrapped.step(np.array([1.0, 1.0, -1.0, 0.5], np.float32))
+    np.testing.assert_allclose(sent[0], [0.75, -0.25, -0.25, 0.125])
+    for scale in (0.0, -1.0, float("nan")):
+        with pytest.raises(InvalidInputError, match="positive finite"):
+            ResidualAction(reach, lambda obs: np.zeros(4), scale=scale)
+
+
+# ------------------------------------------------------------------------------------------ repeated actions
+def test_a_repeated_action_is_the_same_as_stepping_it_repeatedly():
+    from hoap_actions.envs.wrappers import RepeatAction
+
+    action = np.array([0.6, -0.3, 0.4, 0.0], np.float32)
+    plain = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
+    repeated = RepeatAction(gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta"), 3)
+    plain.reset(seed=4)
+    repeated.reset(seed=4)
+    for _ in range(2):
+        for _ in range(3):
+            expected = plain.step(action)
+        got = repeated.step(action)
+        for key in expected[0]:
+            np.testing.assert_array_equal(got[0][key], expected[0][key])
+        assert got[1:4] == expected[1:4]
+        # the reward returned is the one HER recomputes from the returned achieved goal
+        assert got[1] == repeated.compute_reward(got[0]["achieved_goal"], got[0]["desired_goal"], got[4])
+    plain.close()
+    repeated.close()
+
+
+def test_a_repeat_stops_when_the_episode_ends():
+    from hoap_actions.envs.wrappers import RepeatAction
+
+    env = RepeatAction(gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta", max_episode_steps=5), 3)
+    env.reset(seed=0)
+    assert not any(env.step(np.zeros(4, np.float32))[2:4])
+    *_, terminated, truncated, _ = env.step(np.zeros(4, np.float32))  # steps 4 and 5 of 5, not 6
+    assert truncated and not terminated
+    for repeat in (0, 1.5, True, -2):
+        with pytest.raises(InvalidInputError, match="whole number"):
+            RepeatAction(env, repeat)
+    env.close()
