@@ -1,4 +1,5 @@
-"""SelectObservation: the kept fields are the env's own named fields, the goal API is untouched."""
+"""The RL wrappers: SelectObservation keeps the env's own named fields with the goal API untouched;
+ResidualAction adds a (scaled) learner's action to a base policy's; RepeatAction holds a decision for K steps."""
 
 from __future__ import annotations
 
