@@ -59,6 +59,8 @@ END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (
 NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class
 SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (people vary +-30 %)
 SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
+LEAP_SHARE = 0.0  # particles per frame that leap ahead in their chain (validation: see NOTES)
+LEAP_CHAIN_SHARE = 0.25  # a leap is uniform over up to this share of the chain's states
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
 OBJECT_END_SPREAD_M = 0.045  # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
@@ -257,7 +259,8 @@ class ActionTracker:
             self.speed[chosen] *= np.exp(self._rng.normal(0.0, SPEED_JITTER, chosen.size))
             last = self.state[chosen] >= k - 1
             s = np.minimum(self.state[chosen], k - 1)
-            self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen], k - 1)
+            leap = (self._rng.random(chosen.size) < LEAP_SHARE) * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size)
+            self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
             spread = self._position_sd[cid][s.astype(int)]
             noise = self._rng.normal(0.0, 1.0, spread.shape) * spread
             self.offset[chosen] = POSE_MEMORY * self.offset[chosen] + np.sqrt(1.0 - POSE_MEMORY**2) * noise
