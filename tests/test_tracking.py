@@ -8,7 +8,7 @@ import pytest
 from hoap_actions.default_models import load_default_models
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.tracking.action_tracker import ActionTracker
+from hoap_actions.primitives.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker
 from hoap_actions.primitives.tracking.body_model import BodyModel, Capsule
 from hoap_actions.primitives.tracking.edges import edge_image
 from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
@@ -196,6 +196,31 @@ def test_the_seen_block_draws_the_reach_goal_towards_it(models, reach):
     manipulation = next(cid for cid, c in models.classes_.items() if c.kind == "manipulation")
     tracker._switch(np.arange(5), np.full(5, manipulation))
     np.testing.assert_allclose(tracker.start[:5, :2], np.tile(block[:2], (5, 1)))
+
+
+def test_a_few_particles_leap_ahead_in_their_chain_by_at_most_the_set_share(models):
+    """One propagation from the middle of each class's chain: the advance beyond the learned pace
+    (rate x the particle's speed) is zero for all but about LEAP_SHARE of the manipulation and remove
+    particles and for every approach particle, never negative, and at most LEAP_CHAIN_SHARE of the
+    chain; no state passes the chain's last."""
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=20000, random_state=0)
+    tracker.class_id = np.resize(sorted(models.classes_), tracker.n_particles)  # every class, not only the first
+    sizes = np.array([models.classes_[c].phmm.n_states for c in tracker.class_id])
+    tracker.state = np.floor((sizes - 1) / 2.0)
+    before, classes = tracker.state.copy(), tracker.class_id.copy()
+    tracker._propagate()
+    long_chains = sizes >= 10  # from mid-chain, no advance reaches their last state
+    assert np.array_equal(tracker.class_id[long_chains], classes[long_chains]) and np.all(tracker.state <= sizes - 1)
+    rates = np.array([1.0 - models.classes_[c].phmm.transmat_[int(s), int(s)] for c, s in zip(classes, before)])
+    approach = np.array([models.classes_[c].kind == "approach" for c in classes])
+    leap = tracker.state - before - rates * tracker.speed
+    assert np.any(approach & long_chains) and np.all(np.abs(leap[approach & long_chains]) < 1e-9)
+    leap, sizes = leap[long_chains & ~approach], sizes[long_chains & ~approach]
+    assert np.all(leap > -1e-9) and np.all(leap <= LEAP_CHAIN_SHARE * sizes + 1e-9)
+    share = np.mean(leap > 1e-9)
+    half_width = 4.0 * np.sqrt(LEAP_SHARE * (1 - LEAP_SHARE) / leap.size)
+    assert abs(share - LEAP_SHARE) < half_width
 
 
 def test_same_seed_same_track(models, reach):

@@ -8,6 +8,12 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
   interpolated between neighbouring state means, as :meth:`ParametricHMM.synthesize` does: with a
   discrete ``s`` a fast reach falls between two means, and particles that wait where the image fits
   best never catch up.
+* In manipulations and removes, a small share of particles (:data:`LEAP_SHARE` per frame) leaps ahead
+  in its chain, by up to :data:`LEAP_CHAIN_SHARE` of its states: a demonstrator who lingers and then
+  moves fast (a slow lift before a quick withdrawal) leaves particles moving at a learned pace behind,
+  and near the block the image does not tell them apart until the arm has gone. Approach particles do
+  not leap: those that did finished their reach before the arm showed its goal, and the goal's
+  estimate suffered.
 * From the chain's last state the class ends with its learned exit probability; a successor is drawn
   from the grammar and starts where the previous one ended (only the end of phi is estimated). The
   effects of approach and remove are the hand's start and end, a manipulation's the object's: the
@@ -59,8 +65,8 @@ END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (
 NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class
 SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (people vary +-30 %)
 SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
-LEAP_SHARE = 0.0  # particles per frame that leap ahead in their chain (validation: see NOTES)
-LEAP_CHAIN_SHARE = 0.25  # a leap is uniform over up to this share of the chain's states
+LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
+LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
 OBJECT_END_SPREAD_M = 0.045  # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
@@ -260,6 +266,7 @@ class ActionTracker:
             last = self.state[chosen] >= k - 1
             s = np.minimum(self.state[chosen], k - 1)
             leap = (self._rng.random(chosen.size) < LEAP_SHARE) * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size)
+            leap *= model.kind != APPROACH
             self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
             spread = self._position_sd[cid][s.astype(int)]
             noise = self._rng.normal(0.0, 1.0, spread.shape) * spread
