@@ -1,6 +1,6 @@
 """Tracking in action space from the demonstration camera (the paper's Figs. 10-12): accuracy and speed.
 
-Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (seeds 271-273,
+Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (seeds 291-293 for the current tracker,
 declared in ``results/NOTES.md`` before they were recorded; validation: seed 300), episodes 0, 13, ...,
 91 of each (every action of the preset), with the shipped models and the filter's seed 0. Per
 recording: RMS error of shoulder, elbow and finger (index tip) and of all six markers over whole
@@ -12,7 +12,7 @@ class (frame agreement). Speed: frames per second of edge image, foreground mask
 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 / 640 x 480 (400 particles), on one
 episode, rendering excluded.
 
-    python benchmarks/tracking.py [--seeds 271 272 273] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
+    python benchmarks/tracking.py [--seeds 291 292 293] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
 
 Recordings are ``data/paper-s<seed>.h5``, recorded when missing. Writes ``results/tracking.json``.
@@ -39,7 +39,7 @@ IMAGE_SIZES = ((160, 120), (320, 240), (640, 480))
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      parents=[arguments("tracking.json", data=True)])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[271, 272, 273], help="held-out paper recordings")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[291, 292, 293], help="held-out paper recordings")
     parser.add_argument("--episodes", type=int, nargs="+", default=list(EPISODES))
     parser.add_argument("--particles", type=int, default=400)
     parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
