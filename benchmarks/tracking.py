@@ -1,9 +1,9 @@
 """Tracking in action space from the demonstration camera (the paper's Figs. 10-12): accuracy and speed.
 
-Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (seeds 291-293 for the current tracker,
-declared in ``results/NOTES.md`` before they were recorded; validation: seed 300), episodes 0, 13, ...,
-91 of each (every action of the preset), with the shipped models and the filter's seed 0. Per
-recording: RMS error of shoulder, elbow and finger (index tip) and of all six markers over whole
+Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (the current
+tracker's: seeds 291-293, declared in ``results/NOTES.md`` before they were recorded; validation: seed
+300), episodes 0, 13, ..., 91 of each (every action of the preset), with the shipped models and the
+filter's seed 0. Per recording: RMS error of shoulder, elbow and finger (index tip) and of all six markers over whole
 episodes, the approach's estimated end at its last frame and the frames it took to stay within 2 cm,
 the share of frames whose most probable class is the one discovery reads from the block. The tracker
 scores edges and the silhouette (the default); the same episodes tracked on edges alone (the paper's

@@ -265,8 +265,8 @@ class ActionTracker:
             self.speed[chosen] *= np.exp(self._rng.normal(0.0, SPEED_JITTER, chosen.size))
             last = self.state[chosen] >= k - 1
             s = np.minimum(self.state[chosen], k - 1)
-            leap = (self._rng.random(chosen.size) < LEAP_SHARE) * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size)
-            leap *= model.kind != APPROACH
+            leaps = self._rng.random(chosen.size) < LEAP_SHARE
+            leap = leaps * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size) * (model.kind != APPROACH)
             self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
             spread = self._position_sd[cid][s.astype(int)]
             noise = self._rng.normal(0.0, 1.0, spread.shape) * spread
