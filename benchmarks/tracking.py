@@ -3,14 +3,14 @@
 Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (the current
 tracker's: seeds 291-293, declared in ``results/NOTES.md`` before they were recorded; validation: seed
 300), episodes 0, 13, ..., 91 of each (every action of the preset), with the shipped models and the
-filter's seed 0. Per recording: RMS error of shoulder, elbow and finger (index tip) and of all six markers over whole
-episodes, the approach's estimated end at its last frame and the frames it took to stay within 2 cm,
-the share of frames whose most probable class is the one discovery reads from the block. The tracker
-scores edges and the silhouette (the default); the same episodes tracked on edges alone (the paper's
-eq. 8) are reported beside it. Baselines: the arm held in its first pose (RMS), and the most frequent
-class (frame agreement). Speed: frames per second of edge image, foreground mask and filter with 100 /
-400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 / 640 x 480 (400 particles), on one
-episode, rendering excluded.
+filter's seed 0. Per recording: RMS error of shoulder, elbow and finger (index tip) and of all six
+markers over whole episodes, the approach's estimated end at its last frame and the frames it took to
+stay within 2 cm, the share of frames whose most probable class is the one discovery reads from the
+block. The tracker scores edges and the silhouette (the default); the same episodes tracked on edges
+alone (the paper's eq. 8) are reported beside it. Baselines: the arm held in its first pose (RMS), and
+the most frequent class (frame agreement). Speed: frames per second of edge image, foreground mask and
+filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 / 640 x 480 (400
+particles), on one episode, rendering excluded.
 
     python benchmarks/tracking.py [--seeds 291 292 293] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
