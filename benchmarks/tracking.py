@@ -12,7 +12,7 @@ the most frequent class (frame agreement). Speed: frames per second of edge imag
 filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 / 640 x 480 (400
 particles), on one episode, rendering excluded.
 
-    python benchmarks/tracking.py [--seeds 291 292 293] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
+    python benchmarks/tracking.py [--seeds 291 292 293] [--episodes 0 13 26 ...] [--clutter --noise 0.03] [--side-camera]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
 
 Recordings are ``data/paper-s<seed>.h5``, recorded when missing. Writes ``results/tracking.json``.
@@ -44,22 +44,24 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--particles", type=int, default=400)
     parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
     parser.add_argument("--noise", type=float, default=0.0, help="Gaussian image noise (share of full intensity)")
+    parser.add_argument("--side-camera", action="store_true", help="a second view from the demonstrator's right (eq. 9)")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet machine")
     return parser.parse_args(argv)
 
 
-def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True) -> dict:
+def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
+                      side_camera=False) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
     from hoap_actions.primitives.discovery import UNKNOWN
-    from hoap_actions.tracking import SCORED_MARKERS, track_episode
+    from hoap_actions.tracking import SCORED_MARKERS, side_cameras, track_episode
 
     runs = []
     for index in episodes:
         result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter, image_noise=noise,
-                               silhouette=silhouette)
+                               silhouette=silhouette, more_cameras=side_cameras(side_camera))
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -134,11 +136,11 @@ def main(argv: list[str] | None = None) -> dict:
         for cues, store, silhouette in (("edges and silhouette", per_recording, True), ("edges only", edges_only, False)):
             print(f"paper seed {seed}, {cues}:", flush=True)
             store[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise,
-                                            silhouette)
+                                            silhouette, args.side_camera)
     summary, summary_edges_only = summarise(per_recording), summarise(edges_only)
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
-                     "clutter": args.clutter, "image_noise": args.noise,
+                     "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
                      "models": "shipped default models", "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
         "summary": summary, "summary_edges_only": summary_edges_only,

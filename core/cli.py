@@ -248,7 +248,7 @@ def _track(args: argparse.Namespace) -> int:
     from hoap_actions.primitives.action_models import ActionModels
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.tracking.body_model import BodyModel
-    from hoap_actions.tracking import effect_figure, track_episode, tracking_video_frames
+    from hoap_actions.tracking import effect_figure, side_cameras, track_episode, tracking_video_frames
 
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
@@ -257,7 +257,7 @@ def _track(args: argparse.Namespace) -> int:
         demos = load_demonstrations(args.demos)
         result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
                                keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
-                               silhouette=not args.edges_only)
+                               silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera))
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
@@ -390,6 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                    "with the estimated body and target")
     track.add_argument("--figure", type=_path, help="write Fig. 11 (the estimated effect over time) as a PNG")
     track.add_argument("--clutter", action="store_true", help="put unrelated objects on the table in the images")
+    track.add_argument("--side-camera", action="store_true",
+                       help="score a second view from the demonstrator's right as well (eq. 9; about half the frame rate)")
     track.add_argument("--edges-only", action="store_true",
                        help="score poses on the edge image alone (the paper's eq. 8), without the silhouette that "
                             "background subtraction against the empty table gives (the default uses both)")

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DemoScene
+from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
@@ -29,7 +29,7 @@ from hoap_actions.primitives.tracking.edges import edge_image
 from hoap_actions.primitives.tracking.objects import ObjectLocator
 from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
 
-__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "track_episode", "tracking_video_frames"]
+__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "side_cameras", "track_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
@@ -51,6 +51,7 @@ class TrackResult:
     silhouette: bool                    # scored with the foreground cue as well as the edges
     edges: list[np.ndarray] = field(default_factory=list)
     images: list[np.ndarray] = field(default_factory=list)
+    views: int = 1                      # cameras scored together (eq. 9)
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers and of all, frame rate, approach-end error and frames to
@@ -73,6 +74,7 @@ class TrackResult:
             "hz": len(self.frames) / self.track_s,
             "particles": self.particles,
             "cues": ["edges", "silhouette"] if self.silhouette else ["edges"],
+            "views": self.views,
             "frames": len(self.frames),
             "phi_error_m": float(np.median(errors)) if errors else None,
             "frames_to_converge": float(np.median(found)) if found else None,
@@ -82,6 +84,11 @@ class TrackResult:
             "recognized": recognized.tolist(),
             "truth": self.truth_classes.tolist(),
         }
+
+
+def side_cameras(side: bool) -> tuple[Camera, ...]:
+    """The views added to the demonstration camera: the side camera when ``side``, else none."""
+    return (DEMONSTRATOR_SIDE_CAMERA,) if side else ()
 
 
 def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
@@ -148,7 +155,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     approaches = [(start, end, ep.H[end - 1, hand]) for cid, start, end in runs(truth)
                   if cid != UNKNOWN and kinds.get(cid) == "approach"]
     return TrackResult(frames, ep.H, np.asarray(truth), approaches, tuple(models.marker_names_), particles, spent,
-                       body.torso_base, silhouette, kept, pictures)
+                       body.torso_base, silhouette, kept, pictures, len(views))
 
 
 def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:

@@ -31,6 +31,10 @@ HAND_LINKS = ("r_palm", "r_index", "r_thumb")  # the only links of the demonstra
 DEMONSTRATOR_CAMERA = Camera(eye=(0.75, -0.45, 0.55), target=(-0.30, 0.05, 0.10), fov_deg=55.0, width=320, height=240)
 """A monocular camera across the table from the demonstrator and to their right (the paper's Fig. 12
 view): the reaching arm is seen from the front-side, so the target's depth shows in the image."""
+DEMONSTRATOR_SIDE_CAMERA = Camera(eye=(-0.2, -0.9, 0.45), target=(-0.30, 0.05, 0.10), fov_deg=55.0, width=320,
+                                  height=240)
+"""An optional second view, on the demonstrator's right, looking across the reach: what is depth for
+:data:`DEMONSTRATOR_CAMERA` moves across this image (the tracker's eq. 9 scores both)."""
 OUT_OF_VIEW_M = np.array([0.0, 0.0, -50.0])  # where a body goes while the empty scene is pictured
 CLUTTER = (  # (name, urdf, position m, scale, colour): what else lies on a real table
     ("clutter_box", "demo_object.urdf", (0.25, -0.30, 0.05), 2.0, (0.2, 0.4, 0.9, 1.0)),

@@ -87,11 +87,12 @@ def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path,
             "truth"} <= set(report)
     assert report["particles"] == 50 and len(report["recognized"]) == report["frames"] == small[3].T
     assert (tmp_path / "fig11.png").stat().st_size > 0
-    assert report["cues"] == ["edges", "silhouette"]
+    assert report["cues"] == ["edges", "silhouette"] and report["views"] == 1
     edges_only = tmp_path / "edges.json"
     assert main(["track", "--demos", str(path), "--episode", "3", "--particles", "50", "--edges-only",
-                 "--json", str(edges_only)]) == 0
-    assert json.loads(edges_only.read_text())["cues"] == ["edges"]
+                 "--side-camera", "--json", str(edges_only)]) == 0
+    two_views = json.loads(edges_only.read_text())
+    assert two_views["cues"] == ["edges"] and two_views["views"] == 2
     assert main(["track", "--demos", str(path), "--episode", "3", "--json", str(out)]) == 2  # exists: not replaced
     assert main(["track", "--demos", str(path), "--episode", "9"]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
