@@ -10,7 +10,8 @@ block. The tracker scores edges and the silhouette (the default); the same episo
 alone (the paper's eq. 8) are reported beside it. Baselines: the arm held in its first pose (RMS), and
 the most frequent class (frame agreement). Speed: frames per second of edge image, foreground mask and
 filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 / 640 x 480 (400
-particles), on one episode, rendering excluded.
+particles), on one episode, rendering excluded, with the demonstration camera alone (``--side-camera``
+runs' own frame rates are in their per-episode figures).
 
     python benchmarks/tracking.py [--seeds 291 292 293] [--episodes 0 13 26 ...] [--clutter --noise 0.03] [--side-camera]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
