@@ -15,6 +15,11 @@ runs' own frame rates are in their per-episode figures).
 
     python benchmarks/tracking.py [--seeds 291 292 293] [--episodes 0 13 26 ...] [--clutter --noise 0.03] [--side-camera]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
+    python benchmarks/tracking.py --from-markers --output results/tracking_markers.json
+
+``--from-markers`` tracks the same episodes from their recorded markers and the block's recorded centre
+instead of images (:func:`hoap_actions.tracking.track_markers_episode`): the filter's own error, with
+vision taken out.
 
 Recordings are ``data/paper-s<seed>.h5``, recorded when missing. Writes ``results/tracking.json``.
 """
@@ -46,23 +51,28 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
     parser.add_argument("--noise", type=float, default=0.0, help="Gaussian image noise (share of full intensity)")
     parser.add_argument("--side-camera", action="store_true", help="a second view from the demonstrator's right (eq. 9)")
+    parser.add_argument("--from-markers", action="store_true",
+                        help="track from the recorded markers and block instead of images (no speed part)")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet machine")
     return parser.parse_args(argv)
 
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
-                      side_camera=False) -> dict:
+                      side_camera=False, from_markers=False) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
     from hoap_actions.primitives.discovery import UNKNOWN
-    from hoap_actions.tracking import SCORED_MARKERS, side_cameras, track_episode
+    from hoap_actions.tracking import SCORED_MARKERS, side_cameras, track_episode, track_markers_episode
 
     runs = []
     for index in episodes:
-        result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter, image_noise=noise,
-                               silhouette=silhouette, more_cameras=side_cameras(side_camera))
+        if from_markers:
+            result = track_markers_episode(models, demos, index, particles=particles, seed=0)
+        else:
+            result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
+                                   image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera))
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -83,6 +93,7 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         "approaches_converged": sum(r["approaches_converged"] for r in runs),
         "approaches": sum(r["approaches"] for r in runs),
         "frame_accuracy": float(np.mean(recognized[known] == truth[known])),
+        "kind_accuracy": float(np.average([r["kind_accuracy"] for r in runs], weights=[r["frames"] for r in runs])),
         "baseline_frame_accuracy": float(np.mean(truth[known] == majority)),
         "hz": float(np.median([r["hz"] for r in runs])),
     }
@@ -111,7 +122,8 @@ def summarise(per_recording: dict) -> dict:
     """Mean and 95 % interval over the recordings of each pooled figure."""
     pooled = [r["pooled"] for r in per_recording.values()]
     summary = {key: spread([p[key] for p in pooled]) for key in
-               ("rms_m_all", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "baseline_frame_accuracy", "hz")}
+               ("rms_m_all", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
+                "baseline_frame_accuracy", "hz")}
     for marker in pooled[0]["rms_m"]:
         summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
     return summary
@@ -132,24 +144,27 @@ def main(argv: list[str] | None = None) -> dict:
         write_json(args.output, result)
         return result
     per_recording, edges_only = {}, {}
+    variants = ((("markers and block", per_recording, True),) if args.from_markers else
+                (("edges and silhouette", per_recording, True), ("edges only", edges_only, False)))
     for seed in args.seeds:
         demos = load_demonstrations(ensure_recording("paper", seed, args.data))
-        for cues, store, silhouette in (("edges and silhouette", per_recording, True), ("edges only", edges_only, False)):
+        for cues, store, silhouette in variants:
             print(f"paper seed {seed}, {cues}:", flush=True)
             store[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise,
-                                            silhouette, args.side_camera)
-    summary, summary_edges_only = summarise(per_recording), summarise(edges_only)
+                                            silhouette, args.side_camera, args.from_markers)
+    summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
-                     "models": "shipped default models", "filter_seed": 0},
+                     "from_markers": args.from_markers, "models": "shipped default models", "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
-        "summary": summary, "summary_edges_only": summary_edges_only,
-        "per_recording": per_recording, "per_recording_edges_only": edges_only,
-        "speed": speed(models, load_demonstrations(ensure_recording("paper", args.seeds[0], args.data)),
-                       args.episodes[-1]),
+        "summary": summaries[variants[0][0]], "per_recording": per_recording,
     }
-    for title, figures in (("edges and silhouette", summary), ("edges only (eq. 8)", summary_edges_only)):
+    if not args.from_markers:
+        result.update(summary_edges_only=summaries["edges only"], per_recording_edges_only=edges_only,
+                      speed=speed(models, load_demonstrations(ensure_recording("paper", args.seeds[0], args.data)),
+                                  args.episodes[-1]))
+    for title, figures in summaries.items():
         print(title)
         for key, s in figures.items():
             print(f"{key:>28}: mean {s['mean']:.4g} [{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]")

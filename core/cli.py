@@ -248,16 +248,23 @@ def _track(args: argparse.Namespace) -> int:
     from hoap_actions.primitives.action_models import ActionModels
     from hoap_actions.primitives.datasets import load_demonstrations
     from hoap_actions.primitives.tracking.body_model import BodyModel
-    from hoap_actions.tracking import effect_figure, side_cameras, track_episode, tracking_video_frames
+    from hoap_actions.tracking import (effect_figure, side_cameras, track_episode, track_markers_episode,
+                                       tracking_video_frames)
 
+    if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise):
+        raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
+                                "--edges-only and --noise")
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
                    for name, path in (("report", args.json), ("video", args.video), ("figure", args.figure)) if path}
         models = ActionModels.load(args.models) if args.models else load_default_models()
         demos = load_demonstrations(args.demos)
-        result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
-                               keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
-                               silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera))
+        if args.from_markers:
+            result = track_markers_episode(models, demos, args.episode, particles=args.particles, seed=args.seed)
+        else:
+            result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
+                                   keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
+                                   silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera))
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
@@ -397,6 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "background subtraction against the empty table gives (the default uses both)")
     track.add_argument("--noise", type=float, default=0.0,
                        help="Gaussian image noise, standard deviation as a share of full intensity (default: 0)")
+    track.add_argument("--from-markers", action="store_true",
+                       help="track from the recording's markers and block instead of the camera's images "
+                            "(recognition from motion capture)")
     track.add_argument("--overwrite", action="store_true", help="replace existing --json, --video, --figure files")
     track.set_defaults(func=_track)
     return parser

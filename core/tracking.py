@@ -23,13 +23,13 @@ from hoap_actions.primitives.datasets import Demonstrations
 from hoap_actions.primitives.discovery import UNKNOWN
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
-from hoap_actions.primitives.tracking.action_tracker import ActionTracker, TrackedFrame
+from hoap_actions.primitives.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame
 from hoap_actions.primitives.tracking.body_model import BodyModel
 from hoap_actions.primitives.tracking.edges import edge_image
 from hoap_actions.primitives.tracking.objects import ObjectLocator
 from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
 
-__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "side_cameras", "track_episode", "tracking_video_frames"]
+__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "side_cameras", "track_episode", "track_markers_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
@@ -51,11 +51,13 @@ class TrackResult:
     silhouette: bool                    # scored with the foreground cue as well as the edges
     edges: list[np.ndarray] = field(default_factory=list)
     images: list[np.ndarray] = field(default_factory=list)
-    views: int = 1                      # cameras scored together (eq. 9)
+    views: int = 1                      # cameras scored together (eq. 9); 0: tracked from markers
+    kinds: dict[int, str] = field(default_factory=dict)  # class id -> approach / manipulation / remove
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers and of all, frame rate, approach-end error and frames to
-        find it, per-frame agreement of the recognised class with discovery's, and both class sequences."""
+        find it, per-frame agreement of the recognised class with discovery's (and of its kind: approach,
+        manipulation or remove), and both class sequences."""
         estimate = np.array([f.markers for f in self.frames])
         distance = np.linalg.norm(estimate - self.truth_markers, axis=2)  # (T, M)
         recognized = np.array([max(f.class_probabilities, key=f.class_probabilities.get) for f in self.frames])
@@ -73,7 +75,7 @@ class TrackResult:
             "rms_m_all": float(np.sqrt(np.mean(distance**2))),
             "hz": len(self.frames) / self.track_s,
             "particles": self.particles,
-            "cues": ["edges", "silhouette"] if self.silhouette else ["edges"],
+            "cues": ["markers"] if self.views == 0 else ["edges", "silhouette"] if self.silhouette else ["edges"],
             "views": self.views,
             "frames": len(self.frames),
             "phi_error_m": float(np.median(errors)) if errors else None,
@@ -81,6 +83,8 @@ class TrackResult:
             "approaches_converged": len(found),
             "approaches": len(self.approach_ends),
             "frame_accuracy": float(np.mean(recognized[known] == self.truth_classes[known])) if known.any() else None,
+            "kind_accuracy": float(np.mean([self.kinds.get(int(a)) == self.kinds.get(int(b)) for a, b in
+                                            zip(recognized[known], self.truth_classes[known])])) if known.any() else None,
             "recognized": recognized.tolist(),
             "truth": self.truth_classes.tolist(),
         }
@@ -149,13 +153,51 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                 progress(t + 1, ep.T)
     finally:
         scene.close()
+    truth, approaches = _classes_and_approach_ends(models, ep)
+    return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
+                       body.torso_base, silhouette, kept, pictures, len(views), _kinds(models))
+
+
+def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
+                          seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True) -> TrackResult:
+    """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
+    (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
+    vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
+    gives the tracker the recorded object's centre, as the camera's block locator does."""
+    if not 0 <= episode < len(demos):
+        raise InvalidInputError(f"episode must be in [0, {len(demos) - 1}]; got {episode}")
+    if tuple(demos.marker_names) != tuple(models.marker_names_):
+        raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
+                                f"{list(models.marker_names_)}")
+    raw = demos[episode]
+    ep = clean_demonstrations(dataclasses.replace(demos, episodes=(raw,)))[0]
+    scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
+    try:
+        torso_base = scene.torso_base()
+    finally:
+        scene.close()
+    body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
+    tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
+    started = time.perf_counter()
+    frames = [tracker.step_markers(raw.H[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
+    spent = time.perf_counter() - started
+    truth, approaches = _classes_and_approach_ends(models, ep)
+    return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
+                       body.torso_base, silhouette=False, views=0, kinds=_kinds(models))
+
+
+def _kinds(models: ActionModels) -> dict[int, str]:
+    return {int(cid): c.kind for cid, c in models.classes_.items()}
+
+
+def _classes_and_approach_ends(models: ActionModels, ep) -> tuple[np.ndarray, list[tuple[int, int, np.ndarray]]]:
+    """Discovery's class of each frame (from the block) and each approach's (start, end, true hand end)."""
     truth = models.discovery_.predict(ep.O, [ep.T])[0]
     hand = models.discovery_.hand_marker
-    kinds = {cid: c.kind for cid, c in models.classes_.items()}
+    kinds = _kinds(models)
     approaches = [(start, end, ep.H[end - 1, hand]) for cid, start, end in runs(truth)
                   if cid != UNKNOWN and kinds.get(cid) == "approach"]
-    return TrackResult(frames, ep.H, np.asarray(truth), approaches, tuple(models.marker_names_), particles, spent,
-                       body.torso_base, silhouette, kept, pictures, len(views))
+    return np.asarray(truth), approaches
 
 
 def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:

@@ -13,7 +13,7 @@ from hoap_actions.envs.recording import record
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.datasets import load_demonstrations
 from hoap_actions.primitives.tracking.body_model import BodyModel
-from hoap_actions.tracking import track_episode, tracking_video_frames
+from hoap_actions.tracking import track_episode, track_markers_episode, tracking_video_frames
 
 
 @pytest.fixture(scope="module")
@@ -105,3 +105,29 @@ def test_a_noisy_recording_with_gaps_is_tracked_against_its_bridged_markers(tmp_
     assert np.isnan(noisy[3].H).any()  # markers missing in some frames
     summary = track_episode(load_default_models(), noisy, 3, particles=50, seed=0).summary()
     assert np.isfinite(summary["rms_m_all"]) and summary["rms_m"]["shoulder"] < 0.05
+
+
+def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
+    """Recognition from motion capture: on the push, the pose is a small share of the arm's motion, the
+    kind of primitive is right on most frames, and a frame whose class is right has the right kind; the
+    command writes the same report and refuses image options."""
+    from hoap_actions.cli import main
+    from hoap_actions.primitives.datasets import write_demonstrations
+
+    models = load_default_models()
+    result = track_markers_episode(models, small, 0, particles=100, seed=0)
+    summary = result.summary()
+    held = np.sqrt(np.mean(np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2) ** 2))
+    assert summary["rms_m_all"] < 0.15 * held
+    assert summary["kind_accuracy"] > 0.8 and summary["kind_accuracy"] >= summary["frame_accuracy"]
+    assert summary["cues"] == ["markers"] and summary["views"] == 0
+    path = tmp_path / "small.h5"
+    write_demonstrations(path, small)
+    out = tmp_path / "markers.json"
+    assert main(["track", "--demos", str(path), "--episode", "0", "--particles", "100", "--from-markers",
+                 "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["rms_m_all"] == summary["rms_m_all"] and report["recognized"] == summary["recognized"]
+    assert main(["track", "--demos", str(path), "--from-markers", "--video", str(tmp_path / "v.mp4")]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "--from-markers tracks without images" in error and not (tmp_path / "v.mp4").exists()

@@ -36,7 +36,10 @@ are not scored: the camera cannot see a hand hanging below the table. Edges alon
 on clutter and cannot place an arm in front of a trunk of its colour, so with foreground masks
 (:mod:`~hoap_actions.primitives.tracking.silhouette`) a silhouette term joins them: the share of the
 limbs' axis points off the person plus the share of the person (outside the trunk) the body leaves
-uncovered, over ``2 sigma_s^2``. Weights carry over between frames; systematic resampling when
+uncovered, over ``2 sigma_s^2``. When the object is seen (its position each frame), its displacement
+over the last few frames is evidence of the class: a manipulation moves it, approach and remove do not
+(discovery's own definition); without it a hand hovering at the block reads as a manipulation and the
+particles stay in one while the arm lets go. Weights carry over between frames; systematic resampling when
 the effective sample size falls below half the particles (resampling every frame collapses the end
 estimates before the arm has shown where it goes).
 """
@@ -67,13 +70,22 @@ SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (
 SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
 LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
+SWITCH_SHARE = 0.0
+SWITCH_WINDOW = 0.3
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
+OBJECT_MOVING_M = 0.01  # m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
+OBJECT_STILL_M = 0.003  # m, the same for a block at rest: the locator's jitter (median 0, 90 % below 3-4 mm on validation)
 OBJECT_END_SPREAD_M = 0.045  # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
 FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
+OBJECT_MOTION_FRAMES = 5  # frames over which the object's seen displacement is measured
+OBJECT_OUTLIER_SHARE = 0.1  # share of that displacement's density uniform over OBJECT_MOTION_RANGE_M (a mislocated block)
+OBJECT_MOTION_RANGE_M = 0.3  # m, the uniform's range: about the table region the block moves in
+MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
+# collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
 EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
 
@@ -118,6 +130,9 @@ class ActionTracker:
         n_particles: particles (the paper used 400).
         observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
         silhouette_sigma: the silhouette term's sigma, used when :meth:`step` is given foreground masks.
+        object_still_m, object_moving_m: scales of the object's seen displacement for classes that leave it at
+            rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
+            the term off.
         random_state: seed of the filter's draws.
 
     Attributes:
@@ -127,12 +142,16 @@ class ActionTracker:
 
     def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
                  n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
-                 silhouette_sigma: float = SILHOUETTE_SIGMA, random_state: int | np.random.Generator | None = None) -> None:
+                 silhouette_sigma: float = SILHOUETTE_SIGMA, object_still_m: float | None = OBJECT_STILL_M,
+                 object_moving_m: float = OBJECT_MOVING_M, random_state: int | np.random.Generator | None = None) -> None:
         check_is_fitted(models)
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
             raise InvalidInputError(f"n_particles must be an int >= 1; got {n_particles!r}")
         if not (observation_sigma > 0 and silhouette_sigma > 0 and end_diffusion_m >= 0):
             raise InvalidInputError("observation_sigma and silhouette_sigma must be > 0 and end_diffusion_m >= 0")
+        if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):
+            raise InvalidInputError(f"object_still_m must be > 0 or None (off) and object_moving_m > 0; got "
+                                    f"{object_still_m!r}, {object_moving_m!r}")
         if tuple(body.marker_names) != tuple(models.marker_names_):
             raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
                                     f"{list(models.marker_names_)}")
@@ -142,9 +161,12 @@ class ActionTracker:
         self.observation_sigma = float(observation_sigma)
         self.end_diffusion_m = float(end_diffusion_m)
         self.silhouette_sigma = float(silhouette_sigma)
+        self.object_still_m = None if object_still_m is None else float(object_still_m)
+        self.object_moving_m = float(object_moving_m)
         self._rng = np.random.default_rng(random_state)
         self._object: np.ndarray | None = None
         self._ids = np.array(sorted(models.classes_))
+        self._manipulations = np.array([cid for cid, c in models.classes_.items() if c.kind == MANIPULATION])
         self._n_markers = len(models.marker_names_)
         self._grammar_rows = self._successor_table()
         width = 3 * self._n_markers
@@ -194,6 +216,7 @@ class ActionTracker:
         self.end = np.zeros((self.n_particles, 3))
         self.resting = np.zeros(self.n_particles, dtype=bool)
         self.weights = np.full(self.n_particles, 1.0 / self.n_particles)
+        self._object_track: list[np.ndarray | None] = []
         for cid in np.unique(self.class_id):
             chosen = np.flatnonzero(self.class_id == cid)
             effects = self._training_effects(cid, chosen.size)
@@ -215,15 +238,62 @@ class ActionTracker:
         ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen)."""
         images = self._per_camera(edges, "edge image")
         masks = None if foreground is None else self._per_camera(foreground, "foreground mask")
+        self._see_object(object_position)
+        self._propagate()
+        markers = self.markers()
+        return self._weigh(markers, self._log_likelihood(markers, images, masks))
+
+    def step_markers(self, observed: np.ndarray, sigma_m: float = MARKER_SIGMA_M,
+                     object_position: np.ndarray | None = None) -> TrackedFrame:
+        """Propagate and weigh by observed 3-D markers ``(M, 3)`` (m; NaN: a marker not seen) instead of
+        images: each seen marker an isotropic Gaussian of ``sigma_m`` around the particle's. Recognition
+        from motion capture, and the filter's own error when vision is taken out of it.
+        ``object_position`` as for :meth:`step` (the object's captured centre)."""
+        observed = np.asarray(observed, dtype=float)
+        if observed.shape != (self._n_markers, 3):
+            raise InvalidInputError(f"observed markers must be ({self._n_markers}, 3) in m; got {observed.shape}")
+        if not (np.isfinite(sigma_m) and sigma_m > 0):
+            raise InvalidInputError(f"sigma_m must be > 0 (m); got {sigma_m!r}")
+        self._see_object(object_position)
+        self._propagate()
+        markers = self.markers()
+        seen = np.isfinite(observed).all(axis=1)
+        squared = np.sum((markers[:, seen] - observed[seen]) ** 2, axis=(1, 2))
+        return self._weigh(markers, -squared / (2.0 * sigma_m**2))
+
+    def _see_object(self, object_position: np.ndarray | None) -> None:
+        """Check and remember where the object is seen this frame (None: not seen)."""
         if object_position is not None:
             object_position = np.asarray(object_position, dtype=float)
             if object_position.shape != (3,) or not np.all(np.isfinite(object_position)):
                 raise InvalidInputError(f"object_position must be a finite (3,) position in m or None; "
                                         f"got {object_position!r}")
         self._object = object_position
-        self._propagate()
-        markers = self.markers()
-        likelihood = self._log_likelihood(markers, images, masks)
+        self._object_track = [*self._object_track[-OBJECT_MOTION_FRAMES:], object_position]
+
+    def _object_motion_log_likelihood(self) -> np.ndarray:
+        """Per particle, how well its class explains the object's seen displacement over the last
+        :data:`OBJECT_MOTION_FRAMES` frames: a manipulation moves the object, approach and remove leave it
+        still (discovery's own definition of the classes). Each a half-normal (``object_moving_m``,
+        ``object_still_m``) mixed with a share uniform over :data:`OBJECT_MOTION_RANGE_M` (a mislocated
+        block), divided by the window's length: the windows overlap, so each frame's motion is seen that many
+        times. 0 when the object was not seen at both ends or the term is off."""
+        now, before = self._object_track[-1], self._object_track[0]
+        if self.object_still_m is None or now is None or before is None or len(self._object_track) <= OBJECT_MOTION_FRAMES:
+            return np.zeros(self.n_particles)
+        moved = float(np.linalg.norm(now - before))
+
+        def density(scale: float) -> float:
+            half_normal = np.sqrt(2.0 / np.pi) / scale * np.exp(-0.5 * (moved / scale) ** 2)
+            return np.log((1.0 - OBJECT_OUTLIER_SHARE) * half_normal + OBJECT_OUTLIER_SHARE / OBJECT_MOTION_RANGE_M)
+
+        moving = np.isin(self.class_id, self._manipulations) & ~self.resting
+        return np.where(moving, density(self.object_moving_m), density(self.object_still_m)) / OBJECT_MOTION_FRAMES
+
+    def _weigh(self, markers: np.ndarray, likelihood: np.ndarray) -> TrackedFrame:
+        """Weights times the frame's likelihood (log) and the object's motion term, the frame's summary,
+        resampling when due; a frame that no particle explains starts the filter again from its prior."""
+        likelihood = likelihood + self._object_motion_log_likelihood()
         reinitialised = not np.any(np.isfinite(likelihood))
         if reinitialised:  # nothing explains the image: start again from the prior, never NaN
             self.reset()
@@ -282,7 +352,9 @@ class ActionTracker:
                 fresh = effects[:, 3:] - effects[:, :3] + self.start[redraw] if model.kind == MANIPULATION \
                     else effects[:, 3:]  # a manipulation's end: a learned displacement from its own start
                 self.end[redraw] = fresh + self._rng.normal(0.0, NEW_END_SPREAD_M, (redraw.size, 3))
-            ending = chosen[last & (u[chosen] < model.exit_probability)]
+            late = s >= (1.0 - SWITCH_WINDOW) * (k - 1)
+            early = late & (self._rng.random(chosen.size) < SWITCH_SHARE)
+            ending = chosen[(last & (u[chosen] < model.exit_probability)) | early]
             leaving.append(ending)
             successors.append(self._rng.choice(targets, size=ending.size, p=table[cid] / table[cid].sum()))
         if leaving:  # after every class has moved: a particle that changes class moves once per frame
