@@ -181,7 +181,8 @@ def test_tracks_a_reach_better_than_standing_still(models, reach):
 
 def test_the_seen_block_draws_the_reach_goal_towards_it(models, reach):
     """With the block seen where the learned hand-to-object offset puts the reach's true end, the estimated
-    end is nearer the truth than without it, for each of three seeds; a manipulation starts at the block."""
+    end is nearer the truth than without it, for each of three seeds; a manipulation starts at the block
+    after an approach, and where the previous manipulation ended after one."""
     approach, phi, movement = reach
     body = BodyModel(models.marker_names_, TORSO_BASE)
     edges = list(images(body, movement))
@@ -194,8 +195,12 @@ def test_the_seen_block_draws_the_reach_goal_towards_it(models, reach):
             errors[seen, seed] = np.linalg.norm(frames[-1].end_mean[:2] - phi[3:5])
     assert all(errors[True, seed] < errors[False, seed] for seed in range(3))
     manipulation = next(cid for cid, c in models.classes_.items() if c.kind == "manipulation")
+    tracker.class_id[:5] = approach
     tracker._switch(np.arange(5), np.full(5, manipulation))
     np.testing.assert_allclose(tracker.start[:5, :2], np.tile(block[:2], (5, 1)))
+    pushed_to = tracker.end[:5].copy()  # a manipulation after a manipulation starts where the first one ended
+    tracker._switch(np.arange(5), np.full(5, manipulation))
+    np.testing.assert_allclose(tracker.start[:5], pushed_to)
 
 
 def test_a_few_particles_leap_ahead_in_their_chain_by_at_most_the_set_share(models):

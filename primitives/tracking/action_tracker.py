@@ -368,8 +368,10 @@ class ActionTracker:
     def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
         """Particles that finished their class start the next one where the last ended (EXIT: rest there).
 
-        A manipulation starts at the object, where the previous class ended (the hand's end of an
-        approach, moved to the object's height); approach and remove start at the particle's own hand.
+        A manipulation starts at the object: at the seen block after an approach (without one, at the
+        approach's end moved to the object's height), at the previous manipulation's end after a
+        manipulation (the paper's rule: the particle keeps its own account of where the pushed block is);
+        approach and remove start at the particle's own hand.
         """
         self.resting[particles[successors == EXIT]] = True
         if not particles.size:
@@ -380,8 +382,10 @@ class ActionTracker:
             chosen = particles[rows]
             effects = self._training_effects(int(cid), chosen.size)
             new = self.models.classes_[int(cid)]
-            if new.kind == MANIPULATION and self._object is not None:  # it starts at the seen block
+            chained = np.isin(self.class_id[chosen], self._manipulations)
+            if new.kind == MANIPULATION and self._object is not None:  # after an approach it starts at the seen block
                 start = np.tile([*self._object[:2], new.centre[2]], (chosen.size, 1))
+                start[chained] = self.end[chosen[chained]]  # after a manipulation, where that one ended
                 end = start + effects[:, 3:] - effects[:, :3]
             elif new.kind == MANIPULATION:  # the object moves by a learned displacement
                 previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
