@@ -299,7 +299,8 @@ class ActionTracker:
             self.reset()
             markers = self.markers()
             likelihood = np.zeros(self.n_particles)
-        log_weights = likelihood + np.log(self.weights)
+        with np.errstate(divide="ignore"):  # a weight that underflowed to 0 stays 0 (log -inf), never NaN
+            log_weights = likelihood + np.log(self.weights)
         weights = np.exp(log_weights - log_weights.max())
         weights /= weights.sum()
         frame = self._summary(weights, markers, float(likelihood.max()), reinitialised)
