@@ -284,7 +284,9 @@ def _track(args: argparse.Namespace) -> int:
     print(f"episode {args.episode}, {summary['frames']} frames at {summary['hz']:.0f} Hz with {args.particles} particles: "
           f"RMS shoulder {100 * rms['shoulder']:.1f}, elbow {100 * rms['elbow']:.1f}, finger "
           f"{100 * rms['index_tip']:.1f} cm; approach end {'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
-          f"class agrees with discovery's on {summary['frame_accuracy']:.0%} of frames")
+          + ("no frame has a known class" if summary["frame_accuracy"] is None else
+             f"class agrees with discovery's on {summary['frame_accuracy']:.0%} of frames, its kind on "
+             f"{summary['kind_accuracy']:.0%}"))
     return 0
 
 
