@@ -70,8 +70,6 @@ SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (
 SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
 LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
-SWITCH_SHARE = 0.0
-SWITCH_WINDOW = 0.3
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
 OBJECT_MOVING_M = 0.01  # m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
@@ -353,9 +351,7 @@ class ActionTracker:
                 fresh = effects[:, 3:] - effects[:, :3] + self.start[redraw] if model.kind == MANIPULATION \
                     else effects[:, 3:]  # a manipulation's end: a learned displacement from its own start
                 self.end[redraw] = fresh + self._rng.normal(0.0, NEW_END_SPREAD_M, (redraw.size, 3))
-            late = s >= (1.0 - SWITCH_WINDOW) * (k - 1)
-            early = late & (self._rng.random(chosen.size) < SWITCH_SHARE)
-            ending = chosen[(last & (u[chosen] < model.exit_probability)) | early]
+            ending = chosen[last & (u[chosen] < model.exit_probability)]
             leaving.append(ending)
             successors.append(self._rng.choice(targets, size=ending.size, p=table[cid] / table[cid].sum()))
         if leaving:  # after every class has moved: a particle that changes class moves once per frame
