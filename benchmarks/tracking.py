@@ -1,7 +1,7 @@
 """Tracking in action space from the demonstration camera (the paper's Figs. 10-12): accuracy and speed.
 
 Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (the current
-tracker's: seeds 307-309, declared in ``results/NOTES.md`` before they were recorded; validation: seed
+tracker's: seeds 310-312, declared in ``results/NOTES.md`` before they were recorded; validation: seed
 300), episodes 0, 13, ..., 91 of each (every action of the preset), with the shipped models and the
 filter's seed 0. Per recording: RMS error of shoulder, elbow and finger (index tip) and of all six
 markers over whole episodes, the approach's estimated end at its last frame and the frames it took to
@@ -13,7 +13,7 @@ filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 
 particles), on one episode, rendering excluded, with the demonstration camera alone (``--side-camera``
 runs' own frame rates are in their per-episode figures).
 
-    python benchmarks/tracking.py [--seeds 307 308 309] [--episodes 0 13 26 ...] [--clutter --noise 0.03] [--side-camera]
+    python benchmarks/tracking.py [--seeds 310 311 312] [--episodes 0 13 26 ...] [--clutter --noise 0.03] [--side-camera]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
     python benchmarks/tracking.py --from-markers --output results/tracking_markers.json
 
@@ -45,7 +45,7 @@ IMAGE_SIZES = ((160, 120), (320, 240), (640, 480))
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      parents=[arguments("tracking.json", data=True)])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[307, 308, 309], help="held-out paper recordings")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[310, 311, 312], help="held-out paper recordings")
     parser.add_argument("--episodes", type=int, nargs="+", default=list(EPISODES))
     parser.add_argument("--particles", type=int, default=400)
     parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
