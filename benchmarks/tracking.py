@@ -55,7 +55,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="track from the recorded markers and block instead of images (no speed part)")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet machine")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only):
+        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera and --speed-only")
+    return args
 
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,

@@ -113,12 +113,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     if not demos.joint_names:
         raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
                                 "record it again with this version: hoap-actions record")
-    if not 0 <= episode < len(demos):
-        raise InvalidInputError(f"episode must be in [0, {len(demos) - 1}]; got {episode}")
-    if tuple(demos.marker_names) != tuple(models.marker_names_):
-        raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
-                                f"{list(models.marker_names_)}")
-    ep = clean_demonstrations(dataclasses.replace(demos, episodes=(demos[episode],)))[0]  # gaps bridged: the truth
+    ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     noise = np.random.default_rng([seed, episode])
     try:
@@ -164,13 +159,7 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
     vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
     gives the tracker the recorded object's centre, as the camera's block locator does."""
-    if not 0 <= episode < len(demos):
-        raise InvalidInputError(f"episode must be in [0, {len(demos) - 1}]; got {episode}")
-    if tuple(demos.marker_names) != tuple(models.marker_names_):
-        raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
-                                f"{list(models.marker_names_)}")
-    raw = demos[episode]
-    ep = clean_demonstrations(dataclasses.replace(demos, episodes=(raw,)))[0]
+    ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     try:
         torso_base = scene.torso_base()
@@ -179,11 +168,23 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
     tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
     started = time.perf_counter()
-    frames = [tracker.step_markers(raw.H[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
+    observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
+    frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
     spent = time.perf_counter() - started
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
                        body.torso_base, silhouette=False, views=0, kinds=_kinds(models))
+
+
+def _bridged_episode(models: ActionModels, demos: Demonstrations, episode: int):
+    """Episode ``episode`` of ``demos`` with its marker gaps bridged (the truth a track is scored against),
+    after checking that it exists and has the models' markers."""
+    if not 0 <= episode < len(demos):
+        raise InvalidInputError(f"episode must be in [0, {len(demos) - 1}]; got {episode}")
+    if tuple(demos.marker_names) != tuple(models.marker_names_):
+        raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
+                                f"{list(models.marker_names_)}")
+    return clean_demonstrations(dataclasses.replace(demos, episodes=(demos[episode],)))[0]
 
 
 def _kinds(models: ActionModels) -> dict[int, str]:

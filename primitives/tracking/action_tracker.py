@@ -379,9 +379,9 @@ class ActionTracker:
             chosen = particles[rows]
             effects = self._training_effects(int(cid), chosen.size)
             new = self.models.classes_[int(cid)]
-            chained = np.isin(self.class_id[chosen], self._manipulations)
             if new.kind == MANIPULATION and self._object is not None:  # after an approach it starts at the seen block
                 start = np.tile([*self._object[:2], new.centre[2]], (chosen.size, 1))
+                chained = np.isin(self.class_id[chosen], self._manipulations)
                 start[chained] = self.end[chosen[chained]]  # after a manipulation, where that one ended
                 end = start + effects[:, 3:] - effects[:, :3]
             elif new.kind == MANIPULATION:  # the object moves by a learned displacement
