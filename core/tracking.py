@@ -83,8 +83,9 @@ class TrackResult:
             "approaches_converged": len(found),
             "approaches": len(self.approach_ends),
             "frame_accuracy": float(np.mean(recognized[known] == self.truth_classes[known])) if known.any() else None,
-            "kind_accuracy": float(np.mean([self.kinds.get(int(a)) == self.kinds.get(int(b)) for a, b in
-                                            zip(recognized[known], self.truth_classes[known])])) if known.any() else None,
+            "kind_accuracy": float(np.mean([self.kinds.get(int(a), "unknown") == self.kinds.get(int(b)) for a, b in
+                                            zip(recognized[known], self.truth_classes[known])]))
+            if known.any() and self.kinds else None,
             "recognized": recognized.tolist(),
             "truth": self.truth_classes.tolist(),
         }

@@ -120,6 +120,12 @@ def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
     held = np.sqrt(np.mean(np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2) ** 2))
     assert summary["rms_m_all"] < 0.15 * held
     assert summary["kind_accuracy"] > 0.8 and summary["kind_accuracy"] >= summary["frame_accuracy"]
+    known = result.truth_classes != -1
+    kind = {cid: c.kind for cid, c in models.classes_.items()}
+    recognized = np.array(summary["recognized"])[known]
+    assert summary["kind_accuracy"] == pytest.approx(np.mean([kind[a] == kind[b] for a, b in
+                                                              zip(recognized, result.truth_classes[known])]))
+    assert dataclasses.replace(result, kinds={}).summary()["kind_accuracy"] is None  # no kinds: no figure, not 100 %
     assert summary["cues"] == ["markers"] and summary["views"] == 0
     path = tmp_path / "small.h5"
     write_demonstrations(path, small)
