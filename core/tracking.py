@@ -14,25 +14,28 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import minimize
 
 from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import Demonstrations
-from hoap_actions.primitives.discovery import UNKNOWN
+from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
-from hoap_actions.primitives.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame
+from hoap_actions.primitives.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame, mean_poses
 from hoap_actions.primitives.tracking.body_model import BodyModel
 from hoap_actions.primitives.tracking.edges import edge_image
 from hoap_actions.primitives.tracking.objects import ObjectLocator
 from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
 
-__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "side_cameras", "track_episode", "track_markers_episode", "tracking_video_frames"]
+__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "pose_floor", "side_cameras", "track_episode", "track_markers_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
+FLOOR_PHASES = 1000  # continuous states tried per frame by pose_floor (a 40-state chain: 25 per state; a fast reach
+# moves up to about 9 cm between state means, so 5 per state left the floor up to 8.5 mm above the path's)
 CONVERGED_M = 0.02  # an approach's estimated end counts as found once it stays within this of the truth
 
 
@@ -175,6 +178,47 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
                        body.torso_base, silhouette=False, views=0, kinds=_kinds(models))
+
+
+def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_effect: bool = False,
+               phases: int = FLOOR_PHASES) -> np.ndarray:
+    """How close the models' mean poses can come to episode ``episode``: per frame, the distance ``(T, M)``
+    (m) of each marker from the pose of discovery's class of the frame at the segment's true effect (the
+    hand's start and end for approach and remove, the object's for a manipulation; ``fit_effect``: the
+    effect that fits the segment best, by Nelder-Mead over the class's effect coordinates from the true
+    one) and the best of ``phases`` continuous states per frame, with no offset. NaN rows: frames of no
+    known class. A tracker whose poses are these means plus offsets cannot do better than this without
+    the offsets; the floor tells the models' share of its error from the search's and the image's."""
+    if isinstance(phases, bool) or not isinstance(phases, (int, np.integer)) or phases < 2:
+        raise InvalidInputError(f"phases must be an int >= 2; got {phases!r}")
+    ep = _bridged_episode(models, demos, episode)
+    truth, _ = _classes_and_approach_ends(models, ep)
+    hand, n_markers = models.discovery_.hand_marker, len(models.marker_names_)
+    out = np.full((ep.T, n_markers), np.nan)
+    for cid, start, end in runs(truth):
+        if cid == UNKNOWN:
+            continue
+        model = models.classes_[cid]
+        states = np.linspace(0.0, model.phmm.n_states - 1, phases)
+        observed = ep.H[start:end]
+
+        def distances(phi: np.ndarray) -> np.ndarray:
+            poses = mean_poses(model, states, np.tile(phi, (phases, 1)), n_markers).reshape(phases, n_markers, 3)
+            d = np.linalg.norm(poses[None] - observed[:, None], axis=3)  # (frames, phases, M)
+            return d[np.arange(len(observed)), np.argmin(np.mean(d**2, axis=2), axis=1)]
+
+        where = ep.O[:, :3] if model.kind == MANIPULATION else ep.H[:, hand]
+        phi = np.r_[where[start], where[end - 1]]
+        best = distances(phi)
+        if fit_effect and model.basis.shape[1]:
+            reduced = (phi - model.centre) @ model.basis
+            outside = phi - model.centre - reduced @ model.basis.T  # the part of phi the class never varied
+            fitted = minimize(lambda r: float(np.mean(distances(model.centre + r @ model.basis.T + outside) ** 2)),
+                              reduced, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-7, "maxiter": 300})
+            candidate = distances(model.centre + fitted.x @ model.basis.T + outside)
+            best = candidate if np.mean(candidate**2) < np.mean(best**2) else best
+        out[start:end] = best
+    return out
 
 
 def _bridged_episode(models: ActionModels, demos: Demonstrations, episode: int):

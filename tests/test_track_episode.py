@@ -137,3 +137,42 @@ def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
     assert main(["track", "--demos", str(path), "--from-markers", "--video", str(tmp_path / "v.mp4")]) == 2
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert "--from-markers tracks without images" in error and not (tmp_path / "v.mp4").exists()
+
+
+def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):
+    """The floor's best phase per frame, cross-checked against the PHMM's own synthesis: the path through the
+    state means at the segment's effect, sampled densely, comes as close to each frame within a few mm."""
+    import warnings
+
+    from hoap_actions.primitives.discovery import UNKNOWN
+    from hoap_actions.primitives.labels import runs
+    from hoap_actions.tracking import pose_floor
+
+    models = load_default_models()
+    episode = 3  # the bare approach: one approach, then the remove
+    floor = pose_floor(models, small, episode)
+    fitted = pose_floor(models, small, episode, fit_effect=True)
+    H = small[episode].H
+    truth = models.discovery_.predict(small[episode].O, [small[episode].T])[0]
+    width, hand = 3 * len(models.marker_names_), models.discovery_.hand_marker
+    checked = 0
+    for cid, start, end in runs(truth):
+        if cid == UNKNOWN:
+            assert np.all(np.isnan(floor[start:end]))
+            continue
+        model = models.classes_[cid]
+        assert model.kind != "manipulation"  # the bare approach's pieces: the hand's start and end are the effect
+        phi = np.r_[H[start, hand], H[end - 1, hand]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            path = model.phmm.synthesize((phi - model.centre) @ model.basis, n_frames=4000)[:, :width]
+        path = path.reshape(len(path), -1, 3)
+        d = np.linalg.norm(path[None] - H[start:end, None], axis=3)
+        dense = d[np.arange(end - start), np.argmin(np.mean(d**2, axis=2), axis=1)]
+        rms = lambda x: np.sqrt(np.mean(x**2, axis=1))  # noqa: E731
+        assert np.max(np.abs(rms(floor[start:end]) - rms(dense))) < 0.002  # the same polyline, sampled apart
+        assert np.mean(fitted[start:end] ** 2) <= np.mean(floor[start:end] ** 2)  # a fitted effect never does worse
+        checked += 1
+    assert checked >= 1
+    with pytest.raises(InvalidInputError, match="phases"):
+        pose_floor(models, small, episode, phases=1)

@@ -52,12 +52,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.action_models import ActionModels
+from hoap_actions.primitives.action_models import ActionModels, ClassModel
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery import APPROACH, MANIPULATION
 from hoap_actions.primitives.tracking.body_model import BodyModel, ProjectedBodies, Projector
 
-__all__ = ["ActionTracker", "TrackedFrame"]
+__all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]
 
 # sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen with the silhouette term
 # on a validation recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before
@@ -93,6 +93,26 @@ def _visible_mean(values: np.ndarray) -> np.ndarray:
     seen = np.isfinite(values)
     count = seen.sum(axis=1)
     return np.where(count > 0, np.where(seen, values, 0.0).sum(axis=1) / np.maximum(count, 1), 1.0)
+
+
+def mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers: int) -> np.ndarray:
+    """The markers ``(n, 3 * n_markers)`` a class's PHMM means at continuous states ``states`` (n,) and full
+    effects ``phi`` (n, 6): the means of states ``floor(s)`` and ``ceil(s)`` at phi, interpolated, as
+    :meth:`ParametricHMM.synthesize` moves between them."""
+    phmm = model.phmm
+    width = 3 * n_markers
+    reduced = np.einsum("nk,kp->np", np.asarray(phi, dtype=float) - model.centre, model.basis)
+    states = np.asarray(states, dtype=float)
+    low = np.floor(states).astype(int)
+    high = np.minimum(low + 1, phmm.n_states - 1)
+    share = (states - low)[:, None]
+    bend = phmm.effect_features_.transform(reduced) if phmm.V_.shape[2] else None
+
+    def mean_at(s: np.ndarray) -> np.ndarray:
+        means = phmm.mean_bar_[s, :width] + np.einsum("ndp,np->nd", phmm.W_[s, :width], reduced)
+        return means if bend is None else means + np.einsum("ndm,nm->nd", phmm.V_[s, :width], bend)
+
+    return (1.0 - share) * mean_at(low) + share * mean_at(high)
 
 
 @dataclass(frozen=True, eq=False)
@@ -398,27 +418,14 @@ class ActionTracker:
 
     def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
         """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
-        markers at its phi, between states ``floor(s)`` and ``ceil(s)``, plus its offset."""
+        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`), plus its offset."""
         particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
         out = np.empty((particles.size, self._n_markers, 3))
-        width = 3 * self._n_markers
         for cid in np.unique(self.class_id[particles]):
             rows = np.flatnonzero(self.class_id[particles] == cid)
             chosen = particles[rows]
-            model = self.models.classes_[cid]
-            phmm = model.phmm
             phi = np.hstack([self.start[chosen], self.end[chosen]])
-            reduced = np.einsum("nk,kp->np", phi - model.centre, model.basis)
-            low = np.floor(self.state[chosen]).astype(int)
-            high = np.minimum(low + 1, phmm.n_states - 1)
-            share = (self.state[chosen] - low)[:, None]
-            bend = phmm.effect_features_.transform(reduced) if phmm.V_.shape[2] else None
-
-            def mean_at(s: np.ndarray) -> np.ndarray:
-                means = phmm.mean_bar_[s, :width] + np.einsum("ndp,np->nd", phmm.W_[s, :width], reduced)
-                return means if bend is None else means + np.einsum("ndm,nm->nd", phmm.V_[s, :width], bend)
-
-            pose = (1.0 - share) * mean_at(low) + share * mean_at(high) + self.offset[chosen]
+            pose = mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers) + self.offset[chosen]
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
