@@ -8,7 +8,7 @@ import pytest
 from hoap_actions.default_models import load_default_models
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker
+from hoap_actions.primitives.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker, mean_poses
 from hoap_actions.primitives.tracking.body_model import BodyModel, Capsule
 from hoap_actions.primitives.tracking.edges import edge_image
 from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
@@ -346,3 +346,16 @@ def test_tracker_bad_input(models):
         tracker.step_markers(np.zeros((6, 3)), sigma_m=0.0)
     with pytest.raises(InvalidInputError, match="object_position"):
         tracker.step_markers(np.zeros((6, 3)), object_position=np.zeros(2))
+
+
+def test_mean_poses_refuses_states_off_the_chain_and_misshapen_effects():
+    model = load_default_models().classes_[0]
+    k = model.phmm.n_states
+    phi = np.tile(model.centre, (2, 1))
+    ends = mean_poses(model, np.array([0.0, k - 1.0]), phi, 6)
+    middle = mean_poses(model, np.array([0.5]), phi[:1], 6)
+    first_two = mean_poses(model, np.array([0.0, 1.0]), phi, 6)
+    assert ends.shape == (2, 18) and np.allclose(middle[0], first_two.mean(axis=0))  # halfway between two means
+    for states, effects in (([k - 0.5], phi[:1]), ([-0.1], phi[:1]), ([0.0, 1.0], phi[:1])):
+        with pytest.raises(InvalidInputError):
+            mean_poses(model, np.array(states), effects, 6)

@@ -101,8 +101,13 @@ def mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers
     :meth:`ParametricHMM.synthesize` moves between them."""
     phmm = model.phmm
     width = 3 * n_markers
-    reduced = np.einsum("nk,kp->np", np.asarray(phi, dtype=float) - model.centre, model.basis)
-    states = np.asarray(states, dtype=float)
+    states, phi = np.asarray(states, dtype=float), np.asarray(phi, dtype=float)
+    if states.ndim != 1 or phi.shape != (states.size, 6) or not 0 < width <= phmm.mean_bar_.shape[1]:
+        raise InvalidInputError(f"mean_poses takes states (n,), phi (n, 6) and 1-{phmm.mean_bar_.shape[1] // 3} markers; "
+                                f"got {states.shape}, {phi.shape} and {n_markers}")
+    if states.size and not (states.min() >= 0 and states.max() <= phmm.n_states - 1):
+        raise InvalidInputError(f"states must lie in [0, {phmm.n_states - 1}], the class's chain")
+    reduced = np.einsum("nk,kp->np", phi - model.centre, model.basis)
     low = np.floor(states).astype(int)
     high = np.minimum(low + 1, phmm.n_states - 1)
     share = (states - low)[:, None]
