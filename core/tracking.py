@@ -21,7 +21,7 @@ from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.action_models import ActionModels
 from hoap_actions.primitives.datasets import Demonstrations
-from hoap_actions.primitives.discovery import MANIPULATION, UNKNOWN
+from hoap_actions.primitives.discovery import UNKNOWN, effect_track
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
 from hoap_actions.primitives.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame, mean_poses
@@ -207,8 +207,8 @@ def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_ef
             d = np.linalg.norm(poses[None] - observed[:, None], axis=3)  # (frames, phases, M)
             return d[np.arange(len(observed)), np.argmin(np.mean(d**2, axis=2), axis=1)]
 
-        where = ep.O[:, :3] if model.kind == MANIPULATION else ep.H[:, hand]
-        phi = np.r_[where[start], where[end - 1]]
+        track, _ = effect_track(model.kind, ep.O, ep.H[:, hand])
+        phi = np.r_[track[start], track[end - 1]]
         best = distances(phi)
         if fit_effect and model.basis.shape[1]:
             reduced = (phi - model.centre) @ model.basis

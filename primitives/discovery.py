@@ -598,10 +598,8 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         marker = slice(3 * self.hand_marker, 3 * self.hand_marker + 3)
         for demo, segments in enumerate(self.segmentations_):
             for pid, start, end in segments:
-                if self.primitive_kinds_[pid] != MANIPULATION and arms is not None:
-                    track, source = arms[demo][:, marker], "hand"
-                else:
-                    track, source = objects[demo][:, :3], "object"
+                track, source = effect_track(self.primitive_kinds_[pid], objects[demo],
+                                             None if arms is None else arms[demo][:, marker])
                 members[pid].append(Segment(int(order[demo]), start, end, _xyz(track[start]), _xyz(track[end - 1]),
                                             source))
         return [
@@ -723,6 +721,15 @@ def canonical_order(objects: Sequence[np.ndarray], pieces: Sequence[list[tuple[i
     digests = [hashlib.sha256(np.ascontiguousarray(o, dtype=np.float64).tobytes()).hexdigest() for o in objects]
     motion = [sum(not at_rest for _, _, at_rest in cuts) for cuts in pieces]
     return sorted(range(len(objects)), key=lambda i: (-motion[i], digests[i]))
+
+
+def effect_track(kind: str, objects: np.ndarray, hand: np.ndarray | None) -> tuple[np.ndarray, str]:
+    """The positions ``(T, 3)`` a primitive's effect phi is read from, and their source: the object's for a
+    manipulation, the hand marker's (``hand``, ``(T, 3)``) for approach and remove, the object's when no
+    hand is given. phi of frames ``[start, end)`` is the track at ``start`` and at ``end - 1``."""
+    if kind != MANIPULATION and hand is not None:
+        return hand, "hand"
+    return objects[:, :3], "object"
 
 
 def _xyz(point: np.ndarray) -> tuple[float, float, float]:

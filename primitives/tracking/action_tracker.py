@@ -99,14 +99,20 @@ def mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers
     """The markers ``(n, 3 * n_markers)`` a class's PHMM means at continuous states ``states`` (n,) and full
     effects ``phi`` (n, 6): the means of states ``floor(s)`` and ``ceil(s)`` at phi, interpolated, as
     :meth:`ParametricHMM.synthesize` moves between them."""
+    states, phi = np.asarray(states, dtype=float), np.asarray(phi, dtype=float)
+    features, chain = model.phmm.mean_bar_.shape[1], model.phmm.n_states
+    if states.ndim != 1 or phi.shape != (states.size, 6) or not 0 < 3 * n_markers <= features:
+        raise InvalidInputError(f"mean_poses takes states (n,), phi (n, 6) and 1-{features // 3} markers; "
+                                f"got {states.shape}, {phi.shape} and {n_markers}")
+    if states.size and not (states.min() >= 0 and states.max() <= chain - 1):
+        raise InvalidInputError(f"states must lie in [0, {chain - 1}], the class's chain")
+    return _mean_poses(model, states, phi, n_markers)
+
+
+def _mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers: int) -> np.ndarray:
+    """:func:`mean_poses` without its checks: the filter's particles always lie on their chain."""
     phmm = model.phmm
     width = 3 * n_markers
-    states, phi = np.asarray(states, dtype=float), np.asarray(phi, dtype=float)
-    if states.ndim != 1 or phi.shape != (states.size, 6) or not 0 < width <= phmm.mean_bar_.shape[1]:
-        raise InvalidInputError(f"mean_poses takes states (n,), phi (n, 6) and 1-{phmm.mean_bar_.shape[1] // 3} markers; "
-                                f"got {states.shape}, {phi.shape} and {n_markers}")
-    if states.size and not (states.min() >= 0 and states.max() <= phmm.n_states - 1):
-        raise InvalidInputError(f"states must lie in [0, {phmm.n_states - 1}], the class's chain")
     reduced = np.einsum("nk,kp->np", phi - model.centre, model.basis)
     low = np.floor(states).astype(int)
     high = np.minimum(low + 1, phmm.n_states - 1)
@@ -423,14 +429,14 @@ class ActionTracker:
 
     def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
         """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
-        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`), plus its offset."""
+        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`, unchecked), plus its offset."""
         particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
         out = np.empty((particles.size, self._n_markers, 3))
         for cid in np.unique(self.class_id[particles]):
             rows = np.flatnonzero(self.class_id[particles] == cid)
             chosen = particles[rows]
             phi = np.hstack([self.start[chosen], self.end[chosen]])
-            pose = mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers) + self.offset[chosen]
+            pose = _mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers) + self.offset[chosen]
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
