@@ -96,7 +96,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         "approaches_converged": sum(r["approaches_converged"] for r in runs),
         "approaches": sum(r["approaches"] for r in runs),
         "frame_accuracy": float(np.mean(recognized[known] == truth[known])),
-        "kind_accuracy": float(np.average([r["kind_accuracy"] for r in runs], weights=[r["frames"] for r in runs])),
+        "kind_accuracy": float(np.average([r["kind_accuracy"] for r in runs],  # each episode's share of known frames
+                                          weights=[np.sum(np.asarray(r["truth"]) != UNKNOWN) for r in runs])),
         "baseline_frame_accuracy": float(np.mean(truth[known] == majority)),
         "hz": float(np.median([r["hz"] for r in runs])),
     }
