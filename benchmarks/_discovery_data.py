@@ -18,8 +18,10 @@ logger = logging.getLogger(__name__)
 
 def demonstrator_sources() -> list[Path]:
     """The files that decide what a recording contains."""
-    from hoap_actions.envs import demo_scene, demonstrator, recording
-    from hoap_actions.primitives import datasets
+    from hoap_actions.demonstration import scene as demo_scene
+    from hoap_actions.demonstration import demonstrator
+    from hoap_actions.demonstration import recording
+    from hoap_actions.demonstration import datasets
 
     return [Path(m.__file__) for m in (demonstrator, recording, demo_scene, datasets)]
 
@@ -42,7 +44,7 @@ def paper_recording(seed: int, data: Path, rerecord_stale: bool = False) -> Path
         logger.warning("%s is older than the demonstrator's sources; its figures may not describe the current "
                        "demonstrator (--rerecord-stale records it again)", path)
         return path
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     logger.warning("recording the paper preset (seed %d) again to %s (older than the demonstrator)", seed, path)
     return record("paper", path, seed=seed, overwrite=True)

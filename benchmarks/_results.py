@@ -66,7 +66,7 @@ def ensure_recording(preset: str, seed: int, data: Path, noise: str = "none", wo
     tag += "" if noise == "none" else "-" + noise.replace("=", "").replace(",", "-")
     path = Path(data) / f"{preset}-s{seed}{tag}.h5"
     if not path.exists():
-        from hoap_actions.envs.recording import record
+        from hoap_actions.demonstration.recording import record
 
         record(preset, path, seed=seed, noise=noise, workers=workers, demonstrator=demonstrator)
     return path

@@ -1,7 +1,7 @@
 """Whole-action synthesis on held-out recordings: each carry, push or rotation a demonstrator made,
 synthesised by the learned action at phi = (the object's start, its end) and compared with the hand.
 
-Protocol and baseline: :mod:`hoap_actions.primitives.synthesis_eval`. Models: the shipped ones
+Protocol and baseline: :mod:`hoap_actions.primitives.evaluation.synthesis`. Models: the shipped ones
 (``paper`` seeds 0-9) unless ``--models``; held-out recordings: ``--test-seeds`` (default 107, declared
 for this check before it was recorded).
 
@@ -27,10 +27,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--models", type=Path, help="models directory (default: the shipped models)")
     parser.add_argument("--test-seeds", type=int, nargs="+", default=[107])
     args = parser.parse_args(argv)
-    from hoap_actions.default_models import load_default_models
-    from hoap_actions.primitives.action_models import ActionModels
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.synthesis_eval import whole_action_errors
+    from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.primitives.models.action_models import ActionModels
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.evaluation.synthesis import whole_action_errors
 
     models = ActionModels.load(args.models) if args.models else load_default_models()
     document = {"models": str(args.models or "shipped"), "test_seeds": args.test_seeds, "actions": {}}

@@ -25,10 +25,10 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the environments)
-from hoap_actions.controllers.scripted_expert import ScriptedExpert
-from hoap_actions.envs.core import PHYSICS_STEPS_PER_ACTION
+from hoap_actions.policies.scripted_expert import ScriptedExpert
+from hoap_actions.envs.hoap_env import PHYSICS_STEPS_PER_ACTION
 from hoap_actions.envs.sim import TIMESTEP
-from hoap_actions.episodes import run_episode
+from hoap_actions.apps.episodes import run_episode
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json  # noqa: E402

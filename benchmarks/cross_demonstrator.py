@@ -1,9 +1,9 @@
 """Recognition of a demonstrator by models that never saw them, against models that did.
 
-Two sets of action models (:func:`hoap_actions.primitives.learning.learn`) are learned from the same
+Two sets of action models (:func:`hoap_actions.primitives.pipelines.learn.learn`) are learned from the same
 number of ``paper`` recordings: one from the test demonstrator's own other recordings (same-demonstrator),
 one from other demonstrators (cross-demonstrator). Both recognise the same held-out recording
-(:func:`~hoap_actions.primitives.recognition_eval.recognize_recording`); the difference of each figure
+(:func:`~hoap_actions.primitives.pipelines.recognize.recognize_recording`); the difference of each figure
 says what a body and way of moving never seen cost.
 
     python benchmarks/cross_demonstrator.py [--test relaxed:1 [relaxed:11 ...]] [--same relaxed:2 relaxed:3 relaxed:4]
@@ -49,10 +49,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.envs.demonstrators import demonstrator_profile
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.learning import learn
-    from hoap_actions.primitives.recognition_eval import recognize_recording
+    from hoap_actions.demonstration.bodies import demonstrator_profile
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.pipelines.learn import learn
+    from hoap_actions.primitives.pipelines.recognize import recognize_recording
 
     for name, seed in [*args.test, *args.same, *args.cross]:
         demonstrator_profile(name, seed)  # an unknown demonstrator fails before any recording

@@ -1,8 +1,8 @@
 """How much each demonstrator varies from one repetition to the next, marker by marker.
 
-For every demonstrator (``--demonstrators``, names of :data:`hoap_actions.envs.demonstrators.DEMONSTRATORS`
+For every demonstrator (``--demonstrators``, names of :data:`hoap_actions.demonstration.bodies.DEMONSTRATORS`
 or ``random``, drawn from the seed), each ``approach-grid`` recording (``--seeds``) gives, at each of the
-35 test locations, 4 repetitions of the same reach; :func:`~hoap_actions.primitives.grid_synthesis.repetition_spread`
+35 test locations, 4 repetitions of the same reach; :func:`~hoap_actions.primitives.evaluation.grid_synthesis.repetition_spread`
 measures each repetition against the average of the other three, per marker; the mean and 95 % interval
 over the recordings are reported. People vary at least as much in the trunk and elbow as in the hand; a
 tightly scripted arm varies least at the shoulder.
@@ -33,9 +33,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.envs.demonstrators import demonstrator_profile
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.grid_synthesis import grid_data, repetition_spread
+    from hoap_actions.demonstration.bodies import demonstrator_profile
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.evaluation.grid_synthesis import grid_data, repetition_spread
 
     for name in args.demonstrators:
         demonstrator_profile(name, args.seeds[0])  # an unknown name fails before any recording

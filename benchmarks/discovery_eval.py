@@ -43,11 +43,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def evaluate(path: Path, spacing: float | None, threshold: float | None) -> dict:
     """Fit on one dataset, time it and evaluate it."""
-    from hoap_actions.primitives.datasets import load_demonstrations
+    from hoap_actions.demonstration.datasets import load_demonstrations
     import numpy as np
 
-    from hoap_actions.primitives.discovery import PrimitiveDiscovery
-    from hoap_actions.primitives.discovery_evaluation import evaluate_discovery
+    from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+    from hoap_actions.primitives.evaluation.discovery import evaluate_discovery
 
     demos = load_demonstrations(path)
     params = {k: v for k, v in (("spacing", spacing), ("threshold", threshold)) if v is not None}

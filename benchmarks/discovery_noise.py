@@ -2,9 +2,9 @@
 
 Each recording (``paper`` preset, ``--seeds``, recorded with ``--noise``: 1 mm marker and object
 jitter, 1 deg, 5 mm skin offsets and an occlusion gap every 5 s per marker by default) is cleaned as
-its declared noise requires (:mod:`hoap_actions.primitives.mocap_cleaning`) and discovered with each
+its declared noise requires (:mod:`hoap_actions.primitives.pipelines.mocap_cleaning`) and discovered with each
 ``--merging``; per recording and merging it reports whether Fig. 7's structure was found
-(:func:`~hoap_actions.primitives.discovery_robustness.structure_found`), the number of action groups
+(:func:`~hoap_actions.primitives.evaluation.discovery_robustness.structure_found`), the number of action groups
 and the many-to-one frame accuracy, beside two baselines (rest detection with one manipulation label;
 k-means on each motion's displacement). The first recording is also fitted in ``--shuffles`` random
 orders: the number of different results says whether the structure depends on the order.
@@ -41,7 +41,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def fit(demos, merging: str, order=None):
     import dataclasses
 
-    from hoap_actions.primitives.discovery import PrimitiveDiscovery
+    from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 
     if order is not None:
         demos = dataclasses.replace(demos, episodes=tuple(demos[i] for i in order))
@@ -52,13 +52,13 @@ def fit(demos, merging: str, order=None):
 def recording_figures(demos, mergings: list[str]) -> dict:
     import numpy as np
 
-    from hoap_actions.primitives.discovery_evaluation import evaluate_discovery
-    from hoap_actions.primitives.discovery_robustness import (
+    from hoap_actions.primitives.evaluation.discovery import evaluate_discovery
+    from hoap_actions.primitives.evaluation.discovery_robustness import (
         kmeans_baseline_labels,
         rest_baseline_labels,
         structure_found,
     )
-    from hoap_actions.primitives.evaluation import many_to_one_frame_accuracy
+    from hoap_actions.primitives.evaluation.segmentation import many_to_one_frame_accuracy
 
     out = {}
     for merging in mergings:
@@ -80,7 +80,7 @@ def recording_figures(demos, mergings: list[str]) -> dict:
 def order_figures(demos, mergings: list[str], shuffles: int) -> dict:
     import numpy as np
 
-    from hoap_actions.primitives.discovery_robustness import order_signature
+    from hoap_actions.primitives.evaluation.discovery_robustness import order_signature
 
     rng = np.random.default_rng(0)
     orders = [np.arange(len(demos))] + [rng.permutation(len(demos)) for _ in range(shuffles)]
@@ -94,9 +94,9 @@ def order_figures(demos, mergings: list[str], shuffles: int) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.envs.mocap import parse_noise
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.mocap_cleaning import clean_demonstrations
+    from hoap_actions.demonstration.mocap import parse_noise
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
     parse_noise(args.noise)  # a bad model fails before any recording
     per_recording = {}

@@ -79,7 +79,7 @@ def time_fit(objects: list, hands: list, repeats: int) -> dict:
     """Best wall / CPU time of ``fit`` over ``repeats``, the fitted model's size, and a profiled breakdown."""
     import numpy as np
 
-    from hoap_actions.primitives.discovery import PrimitiveDiscovery
+    from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 
     X, lengths, H = np.concatenate(objects), [len(o) for o in objects], np.concatenate(hands)
     walls, cpus = [], []
@@ -115,8 +115,8 @@ def viterbi_comparison(model, objects: list) -> dict:
     """Dense ``hmm_math.viterbi`` against the sparse one on the fitted joint HMM and all frames."""
     import numpy as np
 
-    from hoap_actions.primitives import hmm_math
-    from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
+    from hoap_actions.primitives.hmm import hmm_math
+    from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
 
     relative = model.relative_trajectories(np.concatenate(objects), [len(o) for o in objects])
     X, lengths = np.concatenate(relative), np.array([len(r) for r in relative])
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> dict:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     from _discovery_data import paper_recording, sources_digest
 
-    from hoap_actions.primitives.datasets import load_demonstrations
+    from hoap_actions.demonstration.datasets import load_demonstrations
 
     path = paper_recording(args.seed, args.data, args.rerecord_stale)
     demos = load_demonstrations(path)

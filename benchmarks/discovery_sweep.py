@@ -55,9 +55,9 @@ def recovers_fig7(result: dict) -> bool:
 
 def sweep(path: Path, spacings: list[float], thresholds: list[float]) -> list[dict]:
     """Fit and evaluate every grid cell on one dataset."""
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.discovery import PrimitiveDiscovery
-    from hoap_actions.primitives.discovery_evaluation import evaluate_discovery
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+    from hoap_actions.primitives.evaluation.discovery import evaluate_discovery
 
     demos = load_demonstrations(path)
     X, lengths = np.concatenate([e.O for e in demos]), [e.T for e in demos]

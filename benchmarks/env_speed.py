@@ -24,7 +24,7 @@ from pathlib import Path
 import gymnasium
 
 import hoap_actions
-from hoap_actions.envs.core import PHYSICS_STEPS_PER_ACTION
+from hoap_actions.envs.hoap_env import PHYSICS_STEPS_PER_ACTION
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.sim import TIMESTEP
 

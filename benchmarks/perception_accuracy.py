@@ -6,7 +6,7 @@ forearm hid 2 pegs. Since then the face fit needs three points (a 2-pixel face c
 of the PHMM policy's development seeds) and the robot acts from the ee_delta start posture, hand out
 of the camera's view: measured once more on fresh seeds 11000-11099 in that posture (the default;
 ``--seeds`` and ``--control-mode`` to change). Centres as defined in
-``hoap_actions.controllers.perception``: a peg's centre of mass (its base position), a hole's axis at
+``hoap_actions.vision.perception``: a peg's centre of mass (its base position), a hole's axis at
 the board's top surface (``Scene.hole_positions``). A detection is matched to the nearest true object
 of its kind within ``MATCH_RADIUS``; a true object with no match is missed, a detection with none is
 a phantom. The segmentation image is never given to the perception.
@@ -29,7 +29,7 @@ import cv2
 import gymnasium
 import hoap_actions  # noqa: F401 - registers the envs
 import numpy as np
-from hoap_actions.controllers.perception import locate
+from hoap_actions.vision.perception import locate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json

@@ -1,10 +1,10 @@
 """Recognition of discovered primitives on held-out recordings, from the arm markers alone and with the cuts given.
 
-Protocol: action models are learned (:func:`hoap_actions.primitives.learning.learn`: discovery
+Protocol: action models are learned (:func:`hoap_actions.primitives.pipelines.learn.learn`: discovery
 on the training recordings' object trajectories, one PHMM per class on the arm markers) from the
 ``paper`` recordings with ``--train-seeds``, then every held-out recording (``--test-seeds``, never
 used to choose a setting) is recognised with
-:func:`hoap_actions.primitives.recognition_eval.recognize_recording`: frame and segment accuracy,
+:func:`hoap_actions.primitives.pipelines.recognize.recognize_recording`: frame and segment accuracy,
 edit score and phi error from the markers alone, class accuracy with the cuts given, and a
 frame-by-frame baseline. Each figure is reported per recording and as mean, standard deviation and
 95 % t-interval over the held-out recordings. How the defaults were chosen: ``results/NOTES.md``.
@@ -48,10 +48,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.primitives.action_models import ActionModels
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.learning import learn
-    from hoap_actions.primitives.recognition_eval import recognize_recording
+    from hoap_actions.primitives.models.action_models import ActionModels
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.pipelines.learn import learn
+    from hoap_actions.primitives.pipelines.recognize import recognize_recording
 
     train = [ensure_recording("paper", seed, args.data) for seed in args.train_seeds]
     tests = [ensure_recording("paper", seed, args.data) for seed in args.test_seeds]

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> dict:
     import hmmlearn
     from hmmlearn.hmm import GaussianHMM
 
-    from hoap_actions.primitives.parametric_hmm import ParametricHMM
+    from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 
     X, lengths, phis = make_data(np.random.default_rng(0))
     init = ParametricHMM(n_states=N_STATES, n_iter=1, tol=0.0).fit(X, lengths, phis)

@@ -1,14 +1,14 @@
 """Fig. 8 of the paper: synthesis error of approach PHMMs at locations they were not trained on, linear
 against thin-plate-spline mean models, beside the demonstrator's own error.
 
-Protocol: :mod:`hoap_actions.primitives.grid_synthesis`. For each training grid (2x2: 16 movements, 3x3:
+Protocol: :mod:`hoap_actions.primitives.evaluation.grid_synthesis`. For each training grid (2x2: 16 movements, 3x3:
 36), the mean model is chosen by the paper's rule on the training grid alone
-(:func:`~hoap_actions.primitives.phmm_selection.select_mean_model`: cross-validated resynthesis, one
+(:func:`~hoap_actions.primitives.hmm.selection.select_mean_model`: cross-validated resynthesis, one
 location per fold) among the linear model and thin-plate splines with the smoothings in ``SMOOTHINGS``;
 the chosen model and the linear one are then fitted to the whole grid and scored on the 5x7 test grid.
 Also: errors per marker, the effect of the number of states (``STATE_SWEEP``), fit and synthesis times.
 ``--posture`` adds the chosen model with its shoulder and elbow replaced by a
-:class:`~hoap_actions.primitives.posture.PostureModel` of the training grid's frames (its penalty chosen by
+:class:`~hoap_actions.primitives.hmm.posture.PostureModel` of the training grid's frames (its penalty chosen by
 leaving out one training location at a time).
 
     python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--posture] [--data DIR] [--demonstrator NAME]
@@ -74,9 +74,9 @@ def evaluate_recording(path: Path, diagnose: bool, posture: bool = False) -> tup
     """Every figure of one recording, and the maps (m) to plot."""
     import numpy as np
 
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.grid_synthesis import fit_grid_model, fit_grid_posture, grid_data, synthesis_map
-    from hoap_actions.primitives.phmm_selection import select_mean_model
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.evaluation.grid_synthesis import fit_grid_model, fit_grid_posture, grid_data, synthesis_map
+    from hoap_actions.primitives.hmm.selection import select_mean_model
 
     data = grid_data(load_demonstrations(path))
     human, loo = data.as_map(data.human), data.as_map(data.human_loo)
@@ -146,8 +146,8 @@ def interpolation_limit(data) -> dict:
     training grid's locations (exact at them, with the affine side conditions), against the same means."""
     import numpy as np
 
-    from hoap_actions.primitives.effect_features import ThinPlateFeatures
-    from hoap_actions.primitives.grid_synthesis import TEST_GRID, fit_grid_model
+    from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures
+    from hoap_actions.primitives.evaluation.grid_synthesis import TEST_GRID, fit_grid_model
 
     model, _ = fit_grid_model(data, TEST_GRID, n_states=N_STATES, mean_model="tps", smoothing=1e-2, **MODEL)
     keys = sorted(data.test)
@@ -204,8 +204,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     use_blas_threads(args.threads)
 
-    from hoap_actions.primitives.datasets import load_demonstrations
-    from hoap_actions.primitives.grid_synthesis import grid_data
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.evaluation.grid_synthesis import grid_data
 
     started = time.perf_counter()
     paths = [ensure_recording("approach-grid", seed, args.data, demonstrator=args.demonstrator) for seed in args.seeds]

@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from hoap_actions.envs.robot import ROBOT_MODELS
-from hoap_actions.episodes import compare_policies, summarise
+from hoap_actions.apps.episodes import compare_policies, summarise
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json

@@ -19,9 +19,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from hoap_actions.envs.demo_tasks import FPS
-from hoap_actions.envs.recording import record
-from hoap_actions.primitives.datasets import load_demonstrations
+from hoap_actions.demonstration.tasks import FPS
+from hoap_actions.demonstration.recording import record
+from hoap_actions.demonstration.datasets import load_demonstrations
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json  # noqa: E402

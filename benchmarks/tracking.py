@@ -66,7 +66,7 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
-    from hoap_actions.primitives.discovery import UNKNOWN
+    from hoap_actions.primitives.discovery.estimator import UNKNOWN
     from hoap_actions.tracking import SCORED_MARKERS, side_cameras, track_episode, track_markers_episode
 
     runs = []
@@ -108,7 +108,7 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
 
 def speed(models, demos, episode) -> dict:
     """Frames per second (edge image + filter) against particles and image size."""
-    from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA
+    from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA
     from hoap_actions.tracking import track_episode
 
     out = {"particles": {}, "image_size_400_particles": {}}
@@ -135,8 +135,8 @@ def summarise(per_recording: dict) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.default_models import load_default_models
-    from hoap_actions.primitives.datasets import load_demonstrations
+    from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.demonstration.datasets import load_demonstrations
 
     started = time.perf_counter()
     models = load_default_models()

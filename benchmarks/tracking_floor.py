@@ -38,8 +38,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     import numpy as np
 
-    from hoap_actions.default_models import load_default_models
-    from hoap_actions.primitives.datasets import load_demonstrations
+    from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.tracking import SCORED_MARKERS, pose_floor
 
     started = time.perf_counter()

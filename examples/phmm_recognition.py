@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hoap_actions.envs.recording import record
-from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.learning import learn
+from hoap_actions.demonstration.recording import record
+from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.primitives.pipelines.learn import learn
 from hoap_actions.primitives.labels import runs
 
 

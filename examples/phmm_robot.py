@@ -16,7 +16,7 @@ import gymnasium
 import imageio.v3 as iio
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
-from hoap_actions.controllers.phmm_policy import PHMMPolicy
+from hoap_actions.policies.phmm_policy import PHMMPolicy
 
 
 def main() -> None:

@@ -22,8 +22,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.grid_synthesis import fit_grid_model, grid_data
+from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.primitives.evaluation.grid_synthesis import fit_grid_model, grid_data
 from hoap_actions.primitives.trajectory_metrics import warped_rms_error
 
 
@@ -39,7 +39,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("reach.png"))
     args = parser.parse_args()
     if not args.data.exists():
-        from hoap_actions.envs.recording import record
+        from hoap_actions.demonstration.recording import record
 
         print(f"recording {args.data} (approach-grid preset, seed 0)")
         record("approach-grid", args.data, seed=0)

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
 
-from hoap_actions.primitives.datasets import Demonstrations, load_demonstrations  # noqa: E402
+from hoap_actions.demonstration.datasets import Demonstrations, load_demonstrations  # noqa: E402
 
 
 def pick(demos: Demonstrations, count: int) -> list[int]:

@@ -38,7 +38,7 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
-from hoap_actions.controllers.policies import StraightReach
+from hoap_actions.policies.registry import StraightReach
 from hoap_actions.envs.wrappers import RepeatAction, ResidualAction, SelectObservation
 from hoap_actions.errors import HoapActionsError
 from hoap_actions.outputs import claimed_directory, claimed_file

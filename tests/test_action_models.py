@@ -10,19 +10,19 @@ import warnings
 import numpy as np
 import pytest
 
-from hoap_actions.cli import main
+from hoap_actions.apps.cli import main
 from hoap_actions.errors import DataExistsError, DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
-from hoap_actions.primitives.action_models import ActionModels, marker_features
-from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.discovery import PrimitiveDiscovery
+from hoap_actions.primitives.models.action_models import ActionModels, marker_features
+from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.labels import runs
-from hoap_actions.primitives.models_directory import MANIFEST
+from hoap_actions.primitives.models.models_directory import MANIFEST
 
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     """The ``small`` preset (push, move, rotate, approach), its discovery, and models fitted on it."""
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     path = record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
     demos = load_demonstrations(path)
@@ -281,7 +281,7 @@ def test_recognize_command_gives_the_same_figures_with_one_or_two_workers(small,
 def test_a_recording_of_other_markers_or_rate_is_refused(small):
     import dataclasses
 
-    from hoap_actions.primitives.recognition_eval import recognize_recording
+    from hoap_actions.primitives.pipelines.recognize import recognize_recording
 
     demos, _, models, _ = small
     other_markers = dataclasses.replace(demos, marker_names=tuple(f"m{i}" for i in range(6)))
@@ -355,7 +355,7 @@ def test_models_without_an_action_level_say_how_to_get_one(small):
 
 
 def test_whole_action_errors_score_each_run_by_its_action(small, with_actions):
-    from hoap_actions.primitives.synthesis_eval import whole_action_errors
+    from hoap_actions.primitives.evaluation.synthesis import whole_action_errors
 
     demos, _, models, _ = small
     errors = whole_action_errors(with_actions, demos)  # the training runs themselves
@@ -379,7 +379,7 @@ def test_a_refit_does_not_keep_the_previous_fits_chained_hmm(small):
 
 
 def test_time_stretched_copies_for_speed_augmentation():
-    from hoap_actions.primitives.action_models import _stretch
+    from hoap_actions.primitives.models.action_models import _stretch
 
     ramp = np.linspace(0.0, 1.0, 11)[:, None] * np.ones((1, 18))
     slow = _stretch(ramp, 1.5)

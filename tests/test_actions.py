@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.actions import SIGNATURE_POINTS, action_level, run_signature, whole_runs
-from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.discovery import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.models.whole_actions import SIGNATURE_POINTS, action_level, run_signature, whole_runs
+from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.primitives.discovery.estimator import MANIPULATION, PrimitiveDiscovery
 
 
 def straight_run(heading: float, length: float = 0.1, lift: float = 0.0, frames: int = 60) -> np.ndarray:
@@ -46,7 +46,7 @@ def test_signature_refuses_bad_poses():
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     demos = load_demonstrations(record("small", tmp_path_factory.mktemp("d") / "small.h5", seed=0, progress=False))
     X, lengths = np.concatenate([e.O for e in demos]), [e.T for e in demos]

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import hoap_actions  # noqa: F401  (registers the environments)
-from hoap_actions.cli import main
+from hoap_actions.apps.cli import main
 from hoap_actions.errors import (
     DataExistsError,
     DataFileError,
@@ -32,10 +32,10 @@ from hoap_actions.errors import (
     InvalidInputError,
 )
 from hoap_actions.outputs import PARTIAL_MARK, claimed_file, claimed_files
-from hoap_actions.primitives.datasets import load_demonstrations, write_demonstrations
-from hoap_actions.primitives.discovery import PrimitiveDiscovery
-from hoap_actions.primitives.discovery_files import OUTPUT_FILES, discover_to_dir
-from hoap_actions.primitives.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
+from hoap_actions.demonstration.datasets import load_demonstrations, write_demonstrations
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.pipelines.discover import OUTPUT_FILES, discover_to_dir
+from hoap_actions.primitives.hmm.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
 
 PEG = "hoap_actions/PegInsert-v0"
 SUBPROCESS_TIMEOUT = 120  # s
@@ -199,7 +199,7 @@ def _race_writer(path: str, tag: float, barrier, results) -> None:
 
 def _tagged_demos(tag: float):
     """A valid one-episode dataset whose hand markers all equal ``tag`` (to tell the writers apart)."""
-    from hoap_actions.primitives.datasets import N_MARKERS, Demonstrations, Episode, GroundTruth
+    from hoap_actions.demonstration.datasets import N_MARKERS, Demonstrations, Episode, GroundTruth
 
     T = 20
     truth = GroundTruth(
@@ -276,9 +276,9 @@ def no_long_work(monkeypatch):
     def forbidden(*args, **kwargs):
         raise AssertionError("long work started before the arguments and outputs were checked")
 
-    import hoap_actions.cli as cli_module
-    import hoap_actions.envs.recording as recording
-    import hoap_actions.primitives.discovery_files as discovery_files
+    import hoap_actions.apps.cli as cli_module
+    import hoap_actions.demonstration.recording as recording
+    import hoap_actions.primitives.pipelines.discover as discovery_files
 
     monkeypatch.setattr(recording, "_record_tasks", forbidden)
     monkeypatch.setattr(cli_module, "compare_policies", forbidden)
@@ -493,7 +493,7 @@ def test_row11_synthesize_warns_far_outside_the_training_effects_and_names_their
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     """A recorded ``small`` preset dataset (4 episodes: approach, push, move, rotate)."""
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     return record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
 

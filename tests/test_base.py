@@ -10,9 +10,9 @@ import pytest
 
 from hoap_actions.errors import DataFileError, NotFittedError
 from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
-from hoap_actions.primitives.discovery import PrimitiveDiscovery
-from hoap_actions.primitives.grammar import ActionGrammar
-from hoap_actions.primitives.parametric_hmm import ParametricHMM
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 
 ESTIMATORS = [
     PrimitiveDiscovery(spacing=0.02, threshold=2.0, reg_covar=1e-5, rotation_radius=0.1, hand_marker=3,

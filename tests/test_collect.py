@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import hoap_actions  # noqa: F401
-from hoap_actions.cli import main
-from hoap_actions.collect import collect
+from hoap_actions.apps.cli import main
+from hoap_actions.apps.collect import collect
 from hoap_actions.errors import HoapActionsError, InvalidInputError
 
 minari = pytest.importorskip("minari")

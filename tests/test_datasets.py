@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError
-from hoap_actions.primitives import datasets
-from hoap_actions.primitives.datasets import (
+from hoap_actions.demonstration import datasets
+from hoap_actions.demonstration.datasets import (
     Demonstrations,
     Episode,
     GroundTruth,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import hoap_actions
-from hoap_actions.cli import main
-from hoap_actions.default_models import (
+from hoap_actions.apps.cli import main
+from hoap_actions.models.shipped import (
     PROVENANCE,
     TRAINING_PRESET,
     TRAINING_SEEDS,
@@ -18,8 +18,8 @@ from hoap_actions.default_models import (
     load_default_models,
     sha256,
 )
-from hoap_actions.primitives.action_models import ActionModels
-from hoap_actions.primitives.discovery import PrimitiveDiscovery
+from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 
 
 def test_shipped_files_are_the_ones_the_build_command_recorded():
@@ -47,7 +47,7 @@ def test_shipped_models_load_and_are_small():
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     return record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
 

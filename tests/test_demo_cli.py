@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from hoap_actions.cli import main
+from hoap_actions.apps.cli import main
 
 
 def test_the_cli_refuses_models_without_the_phmm_policy(capsys):

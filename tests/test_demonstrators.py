@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from hoap_actions.envs.demonstrators import (
+from hoap_actions.demonstration.bodies import (
     DEMONSTRATORS,
     REFERENCE_HEIGHT_M,
     DemonstratorProfile,
@@ -56,8 +56,8 @@ def test_a_taller_body_has_longer_trunk_and_arm_and_the_same_hand():
 
 @pytest.fixture(scope="module")
 def short_recording(tmp_path_factory):
-    from hoap_actions.envs.recording import record
-    from hoap_actions.primitives.datasets import load_demonstrations
+    from hoap_actions.demonstration.recording import record
+    from hoap_actions.demonstration.datasets import load_demonstrations
 
     folder = tmp_path_factory.mktemp("demonstrators")
     reference = load_demonstrations(record("small", folder / "reference.h5", seed=1, progress=False))
@@ -81,8 +81,8 @@ def test_a_short_demonstrator_does_every_task_with_a_shorter_arm_and_is_named_in
 
 
 def test_the_demonstrator_and_the_scene_must_hold_the_same_body():
-    from hoap_actions.envs.demo_scene import DemoScene
-    from hoap_actions.envs.demonstrator import Demonstrator
+    from hoap_actions.demonstration.scene import DemoScene
+    from hoap_actions.demonstration.demonstrator import Demonstrator
 
     scene = DemoScene()
     try:
@@ -93,7 +93,7 @@ def test_the_demonstrator_and_the_scene_must_hold_the_same_body():
 
 
 def test_record_command_names_the_demonstrators_it_accepts(tmp_path, capsys):
-    from hoap_actions.cli import main
+    from hoap_actions.apps.cli import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(["record", "--preset", "small", "--out", str(tmp_path / "x.h5"), "--demonstrator", "giant"])
@@ -105,9 +105,9 @@ def test_models_know_who_they_learned_from_and_warn_about_anyone_else(short_reco
     import warnings
 
     from hoap_actions.errors import UnseenDemonstratorWarning
-    from hoap_actions.primitives.action_models import ActionModels
-    from hoap_actions.primitives.learning import learn
-    from hoap_actions.primitives.recognition_eval import recognize_recording
+    from hoap_actions.primitives.models.action_models import ActionModels
+    from hoap_actions.primitives.pipelines.learn import learn
+    from hoap_actions.primitives.pipelines.recognize import recognize_recording
 
     reference, short, folder = short_recording
     models, _ = learn([folder / "reference.h5"])

@@ -9,19 +9,19 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.primitives import hmm_math
-from hoap_actions.primitives.discovery import (
+from hoap_actions.primitives.hmm import hmm_math
+from hoap_actions.primitives.discovery.estimator import (
     APPROACH,
     MANIPULATION,
     REMOVE,
     UNKNOWN,
     PrimitiveDiscovery,
 )
-from hoap_actions.primitives.evaluation import boundary_f1
-from hoap_actions.primitives.gaussians import gaussian_kl, merge_gaussians, symmetric_kl_matrix
-from hoap_actions.primitives.grammar import ActionGrammar
-from hoap_actions.primitives.sparse_viterbi import sparse_viterbi
-from hoap_actions.primitives.substrings import find_primitives, longest_common_substring
+from hoap_actions.primitives.evaluation.segmentation import boundary_f1
+from hoap_actions.primitives.hmm.gaussians import gaussian_kl, merge_gaussians, symmetric_kl_matrix
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
+from hoap_actions.primitives.discovery.substrings import find_primitives, longest_common_substring
 
 DIRECTIONS = {"right": (1.0, 0.0), "left": (-1.0, 0.0), "up": (0.0, 1.0), "down": (0.0, -1.0)}
 DISTANCES = (0.04, 0.08, 0.12)  # 2, 4 and 6 spacings of 2 cm: the Fig. 7 P1 / P1 P2 / P1 P2 P3 case
@@ -550,7 +550,7 @@ def test_agglomerative_merging_gives_fig7_structure_whatever_the_order(pushes):
 
 
 def test_cluster_pieces_merges_closest_first_within_what_is_allowed():
-    from hoap_actions.primitives.state_clustering import cluster_pieces
+    from hoap_actions.primitives.discovery.state_clustering import cluster_pieces
 
     means = np.array([[0.0], [0.1], [5.0], [5.2], [0.05]])
     covs = np.ones((5, 1, 1))

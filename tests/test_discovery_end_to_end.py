@@ -8,20 +8,20 @@ import h5py
 import numpy as np
 import pytest
 
-from hoap_actions.cli import main
+from hoap_actions.apps.cli import main
 from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.primitives.datasets import (
+from hoap_actions.demonstration.datasets import (
     Demonstrations,
     Episode,
     GroundTruth,
     load_demonstrations,
     write_demonstrations,
 )
-from hoap_actions.primitives.discovery import PrimitiveDiscovery
-from hoap_actions.primitives.discovery_evaluation import effect_visible_labels, evaluate_discovery
-from hoap_actions.primitives.discovery_files import OUTPUT_FILES, discover_to_dir
-from hoap_actions.primitives.discovery_groups import action_groups
-from hoap_actions.primitives.grammar import ActionGrammar
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.evaluation.discovery import effect_visible_labels, evaluate_discovery
+from hoap_actions.primitives.pipelines.discover import OUTPUT_FILES, discover_to_dir
+from hoap_actions.primitives.discovery.groups import action_groups
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
 
 # Measured on the small preset (seed 0, labels_version 2: grasp in the approach, release in the remove):
 # many-to-one frame accuracy 0.879 with a ceiling of 0.887 for any method reading only O (the approach-only
@@ -39,7 +39,7 @@ def poses(demos) -> tuple[np.ndarray, list[int]]:
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     path = record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
     return path, load_demonstrations(path)
@@ -201,7 +201,7 @@ def test_single_demonstration_and_an_object_that_never_moves(tmp_path):
 
 
 def test_robustness_helpers_on_the_small_preset(small):
-    from hoap_actions.primitives.discovery_robustness import (
+    from hoap_actions.primitives.evaluation.discovery_robustness import (
         MOVING,
         REST_AFTER,
         REST_BEFORE,
@@ -210,7 +210,7 @@ def test_robustness_helpers_on_the_small_preset(small):
         rest_baseline_labels,
         structure_found,
     )
-    from hoap_actions.primitives.evaluation import many_to_one_frame_accuracy
+    from hoap_actions.primitives.evaluation.segmentation import many_to_one_frame_accuracy
 
     _, demos = small
     X, lengths = poses(demos)

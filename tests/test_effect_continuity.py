@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.effect_continuity import effect_gap_scores
-from hoap_actions.primitives.grammar import ActionGrammar
+from hoap_actions.primitives.models.effect_continuity import effect_gap_scores
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
 
 
 def test_known_gaps():

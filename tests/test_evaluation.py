@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.evaluation import (
+from hoap_actions.primitives.evaluation.segmentation import (
     boundary_f1,
     edit_score,
     hungarian_frame_accuracy,

@@ -13,9 +13,9 @@ import gymnasium
 import numpy as np
 import pytest
 
-from hoap_actions.controllers.policies import policy_class
-from hoap_actions.controllers.scripted_expert import ScriptedExpert, footprint_clearance, thumb_outline
-from hoap_actions.episodes import run_episode
+from hoap_actions.policies.registry import policy_class
+from hoap_actions.policies.scripted_expert import ScriptedExpert, footprint_clearance, thumb_outline
+from hoap_actions.apps.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
 
 FAILURE_REASONS = {"unreachable layout", "grasp slipped", "peg knocked over", "approach blocked", "timeout",

@@ -12,12 +12,12 @@ from scipy.spatial.transform import Rotation
 
 import hoap_actions  # noqa: F401  (registers the envs)
 from hoap_actions.controllers.hand_control import rest_posture
-from hoap_actions.controllers.scripted_expert import ScriptedExpert
+from hoap_actions.policies.scripted_expert import ScriptedExpert
 from hoap_actions.controllers.wholebody_ik import WholeBodyIK
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import Sim
-from hoap_actions.episodes import run_episode
+from hoap_actions.apps.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS
 

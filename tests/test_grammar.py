@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.primitives.grammar import END, ActionGrammar
+from hoap_actions.primitives.discovery.grammar import END, ActionGrammar
 
 DEMOS = [
     ["approach", "push", "remove"],

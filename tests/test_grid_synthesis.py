@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.grid_synthesis import GridData, fit_grid_model, repetition_spread, synthesis_map
+from hoap_actions.primitives.evaluation.grid_synthesis import GridData, fit_grid_model, repetition_spread, synthesis_map
 
 MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
 OFFSETS = np.array([-0.003, 0.0, 0.001, 0.006])  # m, each repetition's shift across its path

@@ -9,7 +9,7 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives import hmm_math as hm
+from hoap_actions.primitives.hmm import hmm_math as hm
 
 hmmlearn_hmm = pytest.importorskip("hmmlearn.hmm")
 

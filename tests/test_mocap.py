@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.envs.mocap import NOISE_MODELS, MocapNoise, add_mocap_noise, parse_noise
+from hoap_actions.demonstration.mocap import NOISE_MODELS, MocapNoise, add_mocap_noise, parse_noise
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.mocap_cleaning import (
+from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.primitives.pipelines.mocap_cleaning import (
     NoiseAboveDeclaredWarning,
     clean_demonstrations,
     fill_gaps,
@@ -94,7 +94,7 @@ def test_lowpass_keeps_slow_movement_without_lag_and_removes_jitter():
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
-    from hoap_actions.envs.recording import record
+    from hoap_actions.demonstration.recording import record
 
     folder = tmp_path_factory.mktemp("mocap")
     exact = load_demonstrations(record("small", folder / "exact.h5", seed=4, progress=False))
@@ -136,7 +136,7 @@ def test_a_recording_noisier_than_declared_is_named(recordings):
 
 
 def test_record_command_takes_a_noise_model(tmp_path, capsys):
-    from hoap_actions.cli import main
+    from hoap_actions.apps.cli import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(["record", "--preset", "small", "--out", str(tmp_path / "x.h5"), "--noise", "loud"])

@@ -10,9 +10,9 @@ import pytest
 
 from em_checks import assert_objective_rises
 from hoap_actions.errors import DataFileError, ExtrapolationWarning, IdentifiabilityError, InvalidInputError
-from hoap_actions.primitives.effect_features import ThinPlateFeatures, effect_groups
-from hoap_actions.primitives.parametric_hmm import ParametricHMM
-from hoap_actions.primitives.phmm_selection import MeanModelSelection, select_mean_model
+from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures, effect_groups
+from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
+from hoap_actions.primitives.hmm.selection import MeanModelSelection, select_mean_model
 
 K, D = 4, 3
 SD = 0.02

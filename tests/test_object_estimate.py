@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.object_estimate import fit_grasp_offset, hand_frames, object_poses
+from hoap_actions.primitives.models.object_estimate import fit_grasp_offset, hand_frames, object_poses
 
 NAMES = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
 # marker positions in the hand's own frame (m): wrist at the origin, knuckle along x, thumb in the xy plane

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hoap_actions.envs.demo_scene import DEMONSTRATOR_CAMERA, DemoScene
+from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DemoScene
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.tracking.objects import ObjectLocator
+from hoap_actions.vision.objects import ObjectLocator
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import sys
 import pytest
 import ray
 
-from hoap_actions.cli import main
-from hoap_actions.envs.recording import record
-from hoap_actions.episodes import compare_policies, summarise
+from hoap_actions.apps.cli import main
+from hoap_actions.demonstration.recording import record
+from hoap_actions.apps.episodes import compare_policies, summarise
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.parallel import check_ray_address, ordered_map
 

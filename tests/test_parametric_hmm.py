@@ -13,9 +13,11 @@ from hoap_actions.errors import (
     InvalidInputError,
     NotFittedError,
 )
-from hoap_actions.primitives import hmm_math as hm
-from hoap_actions.primitives.parametric_hmm import ParametricHMM, Recognition, recognize
-from hoap_actions.primitives.phmm_selection import NStatesSelection, select_n_states
+from hoap_actions.primitives.hmm import hmm_math as hm
+from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
+from hoap_actions.primitives.hmm.phmm_effects import phi_update
+from hoap_actions.primitives.hmm.phmm_recognition import Recognition, recognize
+from hoap_actions.primitives.hmm.selection import NStatesSelection, select_n_states
 
 K, D, P = 4, 3, 2
 SD = 0.05
@@ -162,7 +164,7 @@ def test_m_step_for_w_matches_weighted_least_squares(data):
 
 
 def make_batch(m, X, lengths, phis):
-    from hoap_actions.primitives.parametric_hmm import _Batch
+    from hoap_actions.primitives.hmm.phmm_batch import SequenceBatch as _Batch
     return _Batch.build(X, lengths, phis, X.mean(axis=0), m.covariance_type)
 
 
@@ -187,7 +189,7 @@ def test_phi_update_is_stationary_point_of_expected_complete_ll(data, covariance
     x = np.split(X, np.cumsum(lengths)[:-1])[5]
     batch = make_batch(m, x, np.array([len(x)]), np.array([[0.9, 0.9]]))    # posteriors at a poor guess
     _, gamma, _ = m._e_step(batch)
-    phi_star = m._phi_update(batch, gamma)[0]
+    phi_star = phi_update(m, batch, gamma)[0]
     gamma = gamma[0]
     h = 1e-5
     grad = [(expected_complete_ll(m, x, gamma, phi_star + h * e) - expected_complete_ll(m, x, gamma, phi_star - h * e))

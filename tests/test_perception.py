@@ -10,7 +10,7 @@ import gymnasium
 import hoap_actions  # noqa: F401 - registers the envs
 import numpy as np
 import pytest
-from hoap_actions.controllers.perception import backproject, locate
+from hoap_actions.vision.perception import backproject, locate
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.errors import InvalidInputError
 

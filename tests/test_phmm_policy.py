@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import hoap_actions  # noqa: F401
-from hoap_actions.controllers.phmm_policy import PHMMPolicy
-from hoap_actions.episodes import compare_policies, run_episode, wilson_interval
+from hoap_actions.policies.phmm_policy import PHMMPolicy
+from hoap_actions.apps.episodes import compare_policies, run_episode, wilson_interval
 from hoap_actions.errors import HoapActionsError, InvalidInputError
 
 LAYOUTS = (1, 2)  # development seeds (0-99); the held-out figure uses 30000-30199
@@ -118,7 +118,7 @@ def test_an_episode_does_not_depend_on_what_the_env_did_before():
 
 
 def test_models_come_from_a_directory_too(tmp_path):
-    from hoap_actions.default_models import default_models_path
+    from hoap_actions.models.shipped import default_models_path
 
     env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta")
     try:

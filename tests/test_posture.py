@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.primitives.posture import COMPLETED, PostureModel, choose_alpha, hand_inputs
+from hoap_actions.primitives.hmm.posture import COMPLETED, PostureModel, choose_alpha, hand_inputs
 
 
 def arm_frames(n: int, seed: int = 0, arm=None) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hoap_actions.primitives.recognition_eval import edit_score
+from hoap_actions.primitives.pipelines.recognize import edit_score
 
 
 @pytest.mark.parametrize(

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import hoap_actions  # noqa: F401
-from hoap_actions.controllers.policies import StraightReach, policy_class
+from hoap_actions.policies.registry import StraightReach, policy_class
 from hoap_actions.envs.controls import MAX_HAND_STEP
 from hoap_actions.errors import InvalidInputError
 

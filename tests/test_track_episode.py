@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from hoap_actions.default_models import load_default_models
-from hoap_actions.envs.recording import record
+from hoap_actions.models.shipped import load_default_models
+from hoap_actions.demonstration.recording import record
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.datasets import load_demonstrations
-from hoap_actions.primitives.tracking.body_model import BodyModel
+from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.vision.body_model import BodyModel
 from hoap_actions.tracking import track_episode, track_markers_episode, tracking_video_frames
 
 
@@ -74,8 +74,8 @@ def test_refuses_what_it_cannot_track(small):
 
 
 def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path, capsys):
-    from hoap_actions.cli import main
-    from hoap_actions.primitives.datasets import write_demonstrations
+    from hoap_actions.apps.cli import main
+    from hoap_actions.demonstration.datasets import write_demonstrations
 
     path = tmp_path / "small.h5"
     write_demonstrations(path, small)
@@ -111,8 +111,8 @@ def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
     """Recognition from motion capture: on the push, the pose is a small share of the arm's motion, the
     kind of primitive is right on most frames, and a frame whose class is right has the right kind; the
     command writes the same report and refuses image options."""
-    from hoap_actions.cli import main
-    from hoap_actions.primitives.datasets import write_demonstrations
+    from hoap_actions.apps.cli import main
+    from hoap_actions.demonstration.datasets import write_demonstrations
 
     models = load_default_models()
     result = track_markers_episode(models, small, 0, particles=100, seed=0)
@@ -144,7 +144,7 @@ def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):
     state means at the segment's effect, sampled densely, comes as close to each frame within a few mm."""
     import warnings
 
-    from hoap_actions.primitives.discovery import UNKNOWN
+    from hoap_actions.primitives.discovery.estimator import UNKNOWN
     from hoap_actions.primitives.labels import runs
     from hoap_actions.tracking import pose_floor
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hoap_actions.default_models import load_default_models
+from hoap_actions.models.shipped import load_default_models
 from hoap_actions.envs.sim import Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker, mean_poses
-from hoap_actions.primitives.tracking.body_model import BodyModel, Capsule
-from hoap_actions.primitives.tracking.edges import edge_image
-from hoap_actions.primitives.tracking.silhouette import BackgroundSubtractor
+from hoap_actions.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker, mean_poses
+from hoap_actions.vision.body_model import BodyModel, Capsule
+from hoap_actions.vision.edges import edge_image
+from hoap_actions.vision.silhouette import BackgroundSubtractor
 
 MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
 TORSO_BASE = np.array([-0.47, 0.25, -0.10])  # the demonstration scene's lumbar joint

@@ -76,7 +76,7 @@ def test_bad_fields_name_the_accepted_ones(reach, fields):
 
 # ------------------------------------------------------------------------------------------ residual actions
 def test_a_zero_residual_replays_the_base_policy_bit_for_bit():
-    from hoap_actions.controllers.policies import StraightReach
+    from hoap_actions.policies.registry import StraightReach
     from hoap_actions.envs.wrappers import ResidualAction
 
     traces = []

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from hoap_actions.envs import scene as scene_module
-from hoap_actions.envs.core import HoapEnv
+from hoap_actions.envs.hoap_env import HoapEnv
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Sim
-from hoap_actions.envs.tasks.base import Task
+from hoap_actions.envs.task import Task
 from hoap_actions.errors import InvalidInputError
 
 MIN_INSERTION_DEPTH = 0.01  # m: the peg bottom must be this far below the board surface
@@ -79,6 +79,6 @@ class PegInsertTask(Task):
 
 
 class PegInsertEnv(HoapEnv):
-    """``hoap_actions/PegInsert-v0``: see :class:`PegInsertTask` and :class:`~hoap_actions.envs.core.HoapEnv`."""
+    """``hoap_actions/PegInsert-v0``: see :class:`PegInsertTask` and :class:`~hoap_actions.envs.hoap_env.HoapEnv`."""
 
     task_cls = PegInsertTask

@@ -6,8 +6,8 @@ import numpy as np
 
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.envs import world
-from hoap_actions.envs.core import HoapEnv
-from hoap_actions.envs.tasks.base import Task
+from hoap_actions.envs.hoap_env import HoapEnv
+from hoap_actions.envs.task import Task
 
 TARGET_HEIGHT = (0.03, 0.10)  # m above the table top
 DISTANCE_THRESHOLD = 0.01  # m
@@ -26,7 +26,7 @@ class ReachTask(Task):
     stand as obstacles.
 
     Task observation (float, m): the target position (3), then the pegs and holes
-    (:meth:`~hoap_actions.envs.tasks.base.Task.scene_observation`: the obstacles move with every layout).
+    (:meth:`~hoap_actions.envs.task.Task.scene_observation`: the obstacles move with every layout).
     achieved_goal: r_tcp position; desired_goal: the target. Success: within 1 cm.
     """
 
@@ -71,6 +71,6 @@ def hand_fits(target: np.ndarray, layout: scene_module.Layout) -> bool:
 
 
 class ReachEnv(HoapEnv):
-    """``hoap_actions/Reach-v1``: see :class:`ReachTask` and :class:`~hoap_actions.envs.core.HoapEnv`."""
+    """``hoap_actions/Reach-v1``: see :class:`ReachTask` and :class:`~hoap_actions.envs.hoap_env.HoapEnv`."""
 
     task_cls = ReachTask

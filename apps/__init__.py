@@ -1,0 +1,1 @@
+"""Applications on top of the library: the ``hoap-actions`` command line, episode runs, Minari collection."""

@@ -1,0 +1,443 @@
+"""The ``hoap-actions`` command line: run demos, record demonstrations, discover primitives, learn and recognise.
+
+Every argument and output path is checked before the long work starts; a mistake is one line on
+stderr and exit status 2, with no traceback. Outputs are claimed at the start
+(:mod:`hoap_actions.outputs`) and appear only when complete; an interrupted run (Ctrl-C, SIGTERM)
+leaves none of its partial files behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import json
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from hoap_actions import ENV_IDS, __version__
+from hoap_actions.demonstration.bodies import DEMONSTRATORS
+from hoap_actions.envs.robot import ROBOT_MODELS
+from hoap_actions.envs.scene import CAMERAS
+from hoap_actions.apps.episodes import compare_policies, film_episode, summarise
+from hoap_actions.errors import HoapActionsError, InvalidInputError
+from hoap_actions.outputs import claimed_file
+from hoap_actions.parallel import LOCAL_RAY, check_ray_address
+from hoap_actions.seeds import MAX_SEED, check_seed
+
+EXIT_USAGE = 2  # a user's mistake or a bad file, as argparse uses it
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (the usage text is one ``--help`` away)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def _positive_int(text: str) -> int:
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def _nonnegative_int(text: str) -> int:
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
+    return value
+
+
+def _seed(text: str) -> int:
+    value = _integer(text)
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"a seed is an integer in 0..{MAX_SEED}, got {text}")
+    return value
+
+
+def _noise(text: str):
+    from hoap_actions.demonstration.mocap import parse_noise
+
+    try:
+        return parse_noise(text)
+    except InvalidInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+
+
+def _path(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path; give a file or folder name")
+    return Path(text)
+
+
+def _ray_address(text: str) -> str:
+    try:
+        return check_ray_address(text)
+    except InvalidInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _robot_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
+                        help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs welded "
+                             "(it cannot fall, and it simulates about 3x faster)")
+
+
+def _ray_option(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--ray", nargs="?", const=LOCAL_RAY, type=_ray_address, metavar="ADDRESS",
+                        help=f"run the {what} on Ray (pip install 'hoap-actions[ray]'): alone, a Ray instance on this "
+                             "machine; with an ADDRESS (auto, ray://head:10001), that cluster. --workers then sets the "
+                             "actors (default: one per CPU of the cluster); the output is the same")
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from hoap_actions.policies.registry import policy_class
+
+    names = list(dict.fromkeys(args.policy))
+    classes = {name: policy_class(name, args.env) for name in names}
+    if len({c.control_mode for c in classes.values()}) > 1:
+        raise InvalidInputError(f"policies {names} act through different control modes; run them separately")
+    if args.models is not None and "phmm" not in names:
+        raise InvalidInputError("--models is for the phmm policy; add --policy phmm or leave --models out")
+    if args.models is not None:  # read once here: a bad directory is one line, not a broken worker pool
+        from hoap_actions.primitives.models.action_models import ActionModels
+
+        ActionModels.load(args.models)
+    kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {}) for name in names}
+    check_seed(args.seed, count=args.episodes)
+    last_seed = args.seed + args.episodes - 1
+    if args.film >= args.episodes:
+        raise InvalidInputError(f"--film {args.film} is past the last episode; accepted: 0..{args.episodes - 1}")
+    with contextlib.ExitStack() as outputs:  # claimed before the first episode, published at the end
+        claim = {
+            name: outputs.enter_context(claimed_file(path, args.overwrite, what=name)) if path else None
+            for name, path in (("video", args.video), ("snapshot", args.snapshot), ("report", args.json))
+        }
+        results = compare_policies(args.env, {name: (name, kwargs[name]) for name in names},
+                                   range(args.seed, last_seed + 1), workers=args.workers, robot=args.robot,
+                                   ray_address=args.ray)
+        if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the chosen one again, filmed
+            film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed + args.film,
+                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera,
+                         robot=args.robot)
+        summaries = {name: summarise(episodes) for name, episodes in results.items()}
+        if claim["report"]:  # without wall times: the same file whatever --workers
+            report = {"env": args.env, "robot": args.robot, "seeds": [args.seed, last_seed],
+                      "policies": {name: summarise(episodes, timings=False) for name, episodes in results.items()}}
+            claim["report"].write_text(json.dumps(report, indent=2) + "\n")
+    for name, summary in summaries.items():
+        low, high = summary["success_ci95"]
+        print(f"{name} policy on {args.env} ({args.robot} robot): success rate {summary['success_rate']:.1%} (95 % interval {low:.0%}-{high:.0%}) "
+              f"over {args.episodes} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}, "
+              f"mean episode {summary['mean_wall_s']:.1f} s")
+        for reason, count in summary["reasons"].items():
+            print(f"  {reason}: {count}")
+        if "perception_error_m" in summary and summary["perception_error_m"]["max"] is not None:
+            print(f"  largest perception error of a target peg or hole: {1000 * summary['perception_error_m']['max']:.2f} mm")
+    if args.video:
+        print(f"video of episode {args.film} ({names[0]}, seed {args.seed + args.film}, camera {args.camera}): {args.video}")
+    if args.snapshot:
+        print(f"picture of episode {args.film} ({names[0]}, seed {args.seed + args.film}): {args.snapshot}")
+    if args.json:
+        print(f"results: {args.json}")
+    return 0
+
+
+def _collect(args: argparse.Namespace) -> int:
+    from hoap_actions.apps.collect import collect
+
+    if args.models is not None and args.policy != "phmm":
+        raise InvalidInputError("--models is for the phmm policy; use --policy phmm or leave --models out")
+    kwargs = {"models": str(args.models)} if args.models is not None else {}
+    path = collect(args.env, args.policy, args.episodes, args.seed, args.dataset_id, kwargs, overwrite=args.overwrite,
+                   robot=args.robot)
+    print(f"wrote the Minari dataset {args.dataset_id} ({args.episodes} episodes of the {args.policy} policy, "
+          f"{args.robot} robot): {path}")
+    return 0
+
+
+def _record(args: argparse.Namespace) -> int:
+    from hoap_actions.demonstration.recording import record
+
+    path = record(args.preset, args.out, seed=args.seed, overwrite=args.overwrite, workers=args.workers,
+                  ray_address=args.ray, noise=args.noise, demonstrator=args.demonstrator)
+    print(f"wrote {path}")
+    return 0
+
+
+def _merging(text: str) -> str:
+    """A ``--merging`` value, checked when given (discovery's module is not imported for every command)."""
+    from hoap_actions.primitives.discovery.estimator import MERGINGS
+
+    if text not in MERGINGS:
+        raise argparse.ArgumentTypeError(f"merging must be one of {', '.join(MERGINGS)}; got {text!r}")
+    return text
+
+
+def _merging_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--merging", type=_merging, metavar="{agglomerative,fold}",
+                        help="how pieces merge into states: agglomerative (all at once, closest first: the result does "
+                             "not depend on the demonstrations' order; the default) or fold (the paper's, in the "
+                             "order given)")
+
+
+def _discover(args: argparse.Namespace) -> int:
+    from hoap_actions.primitives.pipelines.discover import discover_to_dir
+
+    summary = discover_to_dir(
+        args.demos, args.out, threshold=args.threshold, spacing=args.spacing, overwrite=args.overwrite,
+        merging=args.merging,
+    )
+    print(summary.report())
+    return 0
+
+
+def _learn(args: argparse.Namespace) -> int:
+    from hoap_actions.primitives.pipelines.learn import learn_to_dir
+
+    summary = learn_to_dir(args.demos, args.out, discovery_dir=args.discovery, overwrite=args.overwrite, progress=True,
+                           merging=args.merging)
+    print(f"{summary.report()}; wrote {args.out}")
+    return 0
+
+
+def _recognize(args: argparse.Namespace) -> int:
+    from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.primitives.models.action_models import ActionModels
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.pipelines.recognize import recognize_recording
+
+    with contextlib.ExitStack() as outputs:
+        report = outputs.enter_context(claimed_file(args.json, args.overwrite, what="report")) if args.json else None
+        models = ActionModels.load(args.models) if args.models else load_default_models()
+        demos = load_demonstrations(args.demos)
+        result = recognize_recording(models, demos, jobs=args.jobs, oracle=args.oracle, progress=True)
+        result = {"demos": str(args.demos), "models": str(args.models or "shipped default models"), **result}
+        if report:
+            report.write_text(json.dumps(result, indent=2) + "\n")
+    oracle = (f"; cuts given: {result['oracle_cut_accuracy']:.1%} of segments" if args.oracle else "")
+    phi = result["phi_error_median_m"]
+    print(
+        f"{result['episodes']} episodes, {result['segments']} segments: frame accuracy {result['frame_accuracy']:.1%}, "
+        f"segment accuracy {result['segment_accuracy']:.1%}, edit score {result['edit_score']:.3f}{oracle}; "
+        f"phi error median {'-' if phi is None else f'{100 * phi:.2f} cm'}; "
+        f"{result['movement_s']:.0f} s of movement in {result['wall_s']:.0f} s"
+    )
+    if args.json:
+        print(f"results: {args.json}")
+    return 0
+
+
+def _track(args: argparse.Namespace) -> int:
+    from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.primitives.models.action_models import ActionModels
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.vision.body_model import BodyModel
+    from hoap_actions.tracking import (effect_figure, side_cameras, track_episode, track_markers_episode,
+                                       tracking_video_frames)
+
+    if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise):
+        raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
+                                "--edges-only and --noise")
+    with contextlib.ExitStack() as outputs:
+        claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
+                   for name, path in (("report", args.json), ("video", args.video), ("figure", args.figure)) if path}
+        models = ActionModels.load(args.models) if args.models else load_default_models()
+        demos = load_demonstrations(args.demos)
+        if args.from_markers:
+            result = track_markers_episode(models, demos, args.episode, particles=args.particles, seed=args.seed)
+        else:
+            result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
+                                   keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
+                                   silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera))
+        summary = result.summary()
+        if "report" in claimed:
+            document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
+                        "models": str(args.models or "shipped default models"), **summary}
+            claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
+        if "video" in claimed:
+            import imageio.v3 as iio
+
+            body = BodyModel(models.marker_names_, torso_base=result.torso_base)
+            with open(claimed["video"], "wb") as fh:
+                iio.imwrite(fh, np.stack(tracking_video_frames(result, body)), extension=".mp4", fps=demos.fps / 4,
+                            codec="libx264", macro_block_size=1)
+        if "figure" in claimed:
+            effect_figure(result, claimed["figure"], demos.fps)
+    rms = summary["rms_m"]
+    phi = summary["phi_error_m"]
+    print(f"episode {args.episode}, {summary['frames']} frames at {summary['hz']:.0f} Hz with {args.particles} particles: "
+          f"RMS shoulder {100 * rms['shoulder']:.1f}, elbow {100 * rms['elbow']:.1f}, finger "
+          f"{100 * rms['index_tip']:.1f} cm; approach end {'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
+          + ("no frame has a known class" if summary["frame_accuracy"] is None else
+             f"class agrees with discovery's on {summary['frame_accuracy']:.0%} of frames, its kind on "
+             f"{summary['kind_accuracy']:.0%}"))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="hoap-actions",
+        description="A humanoid that learns table-top manipulation by watching: run its demo, record simulated "
+        "human demonstrations, discover action primitives in them, learn models of them, recognise them.",
+        epilog="Mistakes in arguments or files end with one line on stderr and exit status 2.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    demo = sub.add_parser("demo", help="run a policy for N episodes and report its success rate")
+    demo.add_argument("--policy", nargs="+", default=["random"], choices=["random", "scripted", "phmm", "straight"],
+                      help="random: any env, joint_delta; scripted: the grasp-and-insert expert (true poses, straight "
+                           "paths); phmm: grasp-and-insert from the overhead camera with paths synthesised by the learned "
+                           "models (both PegInsert-v0, ee_delta); straight: the hand driven straight at the target "
+                           "(Reach-v1, ee_delta). Several run side by side on the same layouts (default: random)")
+    demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
+    demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
+    _robot_option(demo)
+    demo.add_argument("--episodes", type=_positive_int, default=10)
+    demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
+    demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
+    _ray_option(demo, "episodes")
+    demo.add_argument("--video", type=_path, help="write an mp4 of one of the first policy's episodes here (--film)")
+    demo.add_argument("--film", type=_nonnegative_int, default=0, metavar="K",
+                      help="which episode --video and --snapshot show: K for seed S+K (default: 0, the first)")
+    demo.add_argument("--camera", default="closeup", choices=sorted(CAMERAS), help="the video's camera (default: %(default)s)")
+    demo.add_argument("--snapshot", type=_path, help="write a PNG of the first episode here: for the phmm policy the "
+                                                      "overhead image with what it located and the paths it synthesised")
+    demo.add_argument("--json", type=_path, help="write per-episode results here (the same file whatever --workers; "
+                                                  "wall times are printed, not written)")
+    demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
+    demo.set_defaults(func=_demo)
+
+    col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, imitation)")
+    col.add_argument("--policy", required=True, choices=["random", "scripted", "phmm", "straight"],
+                     help="as for demo: random (any env), scripted and phmm (PegInsert-v0), straight (Reach-v1)")
+    col.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
+    _robot_option(col)
+    col.add_argument("--episodes", type=_positive_int, default=10)
+    col.add_argument("--seed", type=_seed, default=0, help="episodes are the layouts of seeds S, S+1, ...")
+    col.add_argument("--dataset-id", required=True, help="Minari id, e.g. hoap_actions/PegInsert/scripted-v0")
+    col.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
+    col.add_argument("--overwrite", action="store_true", help="replace an existing dataset of that id")
+    col.set_defaults(func=_collect)
+
+    rec = sub.add_parser("record", help="record simulated human demonstrations to an HDF5 dataset")
+    rec.add_argument("--preset", required=True, choices=["paper", "approach-grid", "small"])
+    rec.add_argument("--out", type=_path, required=True, help="dataset file to write (.h5)")
+    rec.add_argument("--seed", type=_seed, default=0)
+    rec.add_argument("--workers", type=_positive_int, default=1,
+                     help="processes sharing the episodes; the file is the same byte for byte (default: 1)")
+    _ray_option(rec, "recordings")
+    rec.add_argument("--noise", type=_noise, default="none",
+                     help="what a motion-capture system adds: none (the default: the simulation's exact poses, what "
+                          "the shipped models learned from), mocap (0.7 mm marker and object jitter, 0.7 deg, markers "
+                          "5 mm off the joint centres, an occlusion gap every 5 s per marker), or magnitudes such as "
+                          "marker=1,object=1,angle=1,gaps=0.2,skin=5 (mm, mm, deg, gaps per marker per s, mm)")
+    rec.add_argument("--demonstrator", default="reference", choices=[*DEMONSTRATORS, "random"],
+                     help="who demonstrates: reference (the default: the 1.75 m demonstrator the shipped models learned "
+                          "from), short (1.60 m, leans in, elbow tucked), tall (1.88 m, brisk, elbow out), relaxed (slow, "
+                          "more trunk), or random (body and way of moving drawn from --seed)")
+    rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
+    rec.set_defaults(func=_record)
+
+    disc = sub.add_parser("discover", help="discover action primitives in recorded demonstrations (paper's method)")
+    disc.add_argument("--demos", type=_path, required=True, help="demonstrations dataset (.h5, from the record command)")
+    disc.add_argument("--out", type=_path, required=True, help="directory for the model, classes, grammar, figures")
+    disc.add_argument("--threshold", type=float, help="state-merge threshold, nats (default: the tuned one)")
+    disc.add_argument("--spacing", type=float, help="arc length per Gaussian, m (default: the tuned one)")
+    _merging_argument(disc)
+    disc.add_argument("--overwrite", action="store_true", help="replace previous results in --out")
+    disc.set_defaults(func=_discover)
+
+    learn = sub.add_parser("learn", help="learn one parametric HMM per discovered primitive class, and the grammar")
+    learn.add_argument("--demos", type=_path, nargs="+", required=True,
+                       help="demonstrations datasets (.h5, from the record command)")
+    learn.add_argument("--out", type=_path, required=True, help="models directory to write")
+    learn.add_argument("--discovery", type=_path,
+                       help="a folder the discover command wrote for the same --demos (default: run discovery here)")
+    _merging_argument(learn)
+    learn.add_argument("--overwrite", action="store_true", help="replace an existing models directory at --out")
+    learn.set_defaults(func=_learn)
+
+    rec = sub.add_parser("recognize", help="recognise every episode of a recording from the arm markers alone")
+    rec.add_argument("--demos", type=_path, required=True,
+                     help="a recording the models never saw (.h5, from the record command)")
+    rec.add_argument("--models", type=_path, help="models directory (from the learn command; default: the models "
+                     "shipped in the package, learned from ten paper-preset recordings)")
+    rec.add_argument("--json", type=_path, help="write the figures here")
+    rec.add_argument("--jobs", type=_positive_int, default=1, help="worker processes (the figures do not depend on it)")
+    rec.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,
+                     help="also recognise the true segments with their cuts given (slower; default: on)")
+    rec.add_argument("--overwrite", action="store_true", help="replace an existing --json file")
+    rec.set_defaults(func=_recognize)
+
+    track = sub.add_parser("track", help="track a recorded demonstration from the camera across the table "
+                                         "(particle filter over action, effect and state)")
+    track.add_argument("--demos", type=_path, required=True, help="a recording (.h5, from the record command)")
+    track.add_argument("--episode", type=_nonnegative_int, default=0, help="which episode (default: 0)")
+    track.add_argument("--models", type=_path, help="models directory (default: the shipped models)")
+    track.add_argument("--particles", type=_positive_int, default=400, help="particles (default: %(default)s)")
+    track.add_argument("--seed", type=_seed, default=0, help="the filter's random seed")
+    track.add_argument("--json", type=_path, help="write the figures and the per-frame classes here")
+    track.add_argument("--video", type=_path, help="write Fig. 12 as an mp4: edge image beside the camera image "
+                                                   "with the estimated body and target")
+    track.add_argument("--figure", type=_path, help="write Fig. 11 (the estimated effect over time) as a PNG")
+    track.add_argument("--clutter", action="store_true", help="put unrelated objects on the table in the images")
+    track.add_argument("--side-camera", action="store_true",
+                       help="score a second view from the demonstrator's right as well (eq. 9; about half the frame rate)")
+    track.add_argument("--edges-only", action="store_true",
+                       help="score poses on the edge image alone (the paper's eq. 8), without the silhouette that "
+                            "background subtraction against the empty table gives (the default uses both)")
+    track.add_argument("--noise", type=float, default=0.0,
+                       help="Gaussian image noise, standard deviation as a share of full intensity (default: 0)")
+    track.add_argument("--from-markers", action="store_true",
+                       help="track from the recording's markers and block instead of the camera's images "
+                            "(recognition from motion capture)")
+    track.add_argument("--overwrite", action="store_true", help="replace existing --json, --video, --figure files")
+    track.set_defaults(func=_track)
+    return parser
+
+
+def _stop_on_sigterm(signum: int, frame: object) -> NoReturn:
+    """SIGTERM unwinds like Ctrl-C, so claimed outputs remove their partial files."""
+    raise KeyboardInterrupt
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s"
+    )
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _stop_on_sigterm) if in_main_thread else None
+    try:
+        return args.func(args)
+    except HoapActionsError as error:  # a user's mistake or a bad file: say what, no traceback
+        print(f"hoap-actions {args.command}: error: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"hoap-actions {args.command}: interrupted; no partial output was kept", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,221 @@
+"""Run a policy for many episodes and say how each ended: the loop behind ``hoap-actions demo``."""
+
+from __future__ import annotations
+
+import atexit
+import collections
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import gymnasium
+import numpy as np
+from tqdm import tqdm
+
+import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.parallel import ordered_map
+from hoap_actions.seeds import check_seed
+
+
+class Policy(Protocol):
+    """``obs -> action`` for any ``env.step`` loop; ``failure`` names why it gave up (ends the episode).
+    A policy may also say it is ``done`` (it has nothing left to do), which ends the episode too."""
+
+    failure: str | None
+
+    def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None: ...
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """How one episode ended. For a policy that locates the objects itself (``located()``), the
+    largest centre error (m) of its target peg and hole against the observation's true poses; for one
+    that follows synthesised paths (``path_deviations()``), each path's largest distance (m) from the
+    executed hand."""
+
+    seed: int
+    success: bool
+    reason: str  # "success", "fell", "timeout", "finished without success", or the policy's own failure
+    steps: int
+    wall_s: float
+    perception_error_m: float | None = None
+    path_deviation_m: dict[str, float] | None = None
+
+
+def run_episode(
+    env: gymnasium.Env, policy: Policy, seed: int, frames: list[np.ndarray] | None = None
+) -> EpisodeResult:
+    """One episode on the layout drawn from ``seed``; appends rendered frames if a list is given."""
+    start = time.perf_counter()
+    obs, info = env.reset(seed=seed)
+    truth = env.get_wrapper_attr("parse_observation")(obs) if hasattr(policy, "located") else None
+    policy.reset(obs, info)
+    perception_error = _perception_error(policy.located(), truth) if truth is not None else None
+    steps, reason = 0, "timeout"
+    while True:
+        if frames is not None:
+            frames.append(env.render())
+        if policy.failure:
+            reason = policy.failure
+            break
+        if getattr(policy, "done", False):  # it did all it meant to, and the goal is not reached
+            reason = "finished without success"
+            break
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        steps += 1
+        if info["is_success"]:
+            reason = "success"
+            break
+        if info.get("fallen"):
+            reason = "fell"
+            break
+        if terminated or truncated:
+            break
+    if frames is not None:
+        frames.append(env.render())
+    deviations = policy.path_deviations() if hasattr(policy, "path_deviations") else None
+    return EpisodeResult(seed, reason == "success", reason, steps, time.perf_counter() - start,
+                         perception_error, deviations)
+
+
+def _perception_error(located: dict[str, np.ndarray] | None, truth: dict[str, Any]) -> float | None:
+    """Largest centre error (m) of the located target peg and hole; None if either was not located."""
+    if located is None:
+        return None
+    peg = truth["peg_positions"][truth["target_peg"]]
+    hole = truth["hole_positions"][truth["target_hole"]]
+    return float(max(np.linalg.norm(located["peg"] - peg), np.linalg.norm(located["hole"] - hole)))
+
+
+def film_episode(
+    env_id: str,
+    policy_factory: Callable[[gymnasium.Env], Policy],
+    seed: int,
+    control_mode: str,
+    video: Path | None = None,
+    snapshot: Path | None = None,
+    camera: str = "closeup",
+    robot: str = "full",
+) -> EpisodeResult:
+    """One episode filmed from ``camera``: an mp4 of it at ``video`` and, at ``snapshot``, the policy's
+    own picture of it (``figure()``, e.g. the PHMM policy's Fig. 9) or else its first frame. Pass the
+    partial paths that :func:`hoap_actions.outputs.claimed_file` yields, so the outputs are checked
+    before the episode runs."""
+    check_seed(seed)
+    env = gymnasium.make(env_id, render_mode="rgb_array", camera=camera, control_mode=control_mode, robot=robot)
+    try:
+        policy = policy_factory(env)
+        frames: list[np.ndarray] = []
+        result = run_episode(env, policy, seed, frames)
+        figure = policy.figure() if hasattr(policy, "figure") else None
+    finally:
+        env.close()
+    import imageio.v3 as iio
+
+    if snapshot:
+        iio.imwrite(snapshot, figure if figure is not None else frames[0])
+    if video:
+        iio.imwrite(video, np.stack(frames), fps=env.metadata["render_fps"], codec="libx264", macro_block_size=1)
+    return result
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]], robot: str) -> None:
+    from hoap_actions.policies.registry import policy_class
+
+    classes = {name: policy_class(cls, env_id) for name, (cls, _) in policies.items()}
+    modes = {c.control_mode for c in classes.values()}
+    if len(modes) != 1:
+        raise InvalidInputError(f"the compared policies act through different control modes {sorted(modes)}")
+    env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop(), robot=robot)
+    atexit.register(env.close)  # a worker process closes its simulator before the interpreter goes
+    _WORKER.update(env=env, policies={name: classes[name](env, **kwargs) for name, (_, kwargs) in policies.items()})
+
+
+def _run_seed(seed: int) -> dict[str, EpisodeResult]:
+    return {name: run_episode(_WORKER["env"], policy, seed) for name, policy in _WORKER["policies"].items()}
+
+
+def compare_policies(
+    env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1, robot: str = "full",
+    ray_address: str | None = None,
+) -> dict[str, list[EpisodeResult]]:
+    """Every policy on every seed's layout, interleaved (seed by seed, policy after policy, in one
+    env per worker), so machine load falls alike on all. ``policies`` maps a label to a policy name
+    (:data:`~hoap_actions.policies.registry.POLICIES`) and its keyword arguments. Episodes
+    depend on their seed alone, so ``workers`` processes, or Ray actors with ``ray_address`` (see
+    :func:`hoap_actions.parallel.ordered_map`), give the serial results. ``robot`` is the env's robot
+    model (``"full"`` or ``"fixed_legs"``)."""
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise InvalidInputError("seeds is empty; give at least one")
+    for s in seeds:
+        check_seed(s)
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise InvalidInputError(f"workers must be a positive integer; got {workers!r}")
+    initargs = (env_id, policies, robot)
+    if workers == 1 and ray_address is None:
+        _start_worker(*initargs)
+        try:
+            rows = [_run_seed(s) for s in tqdm(seeds, desc="layouts", disable=not sys.stderr.isatty())]
+        finally:
+            _WORKER.pop("env").close()
+    else:
+        results = ordered_map(_run_seed, seeds, _start_worker, initargs, workers, ray_address)
+        rows = list(tqdm(results, total=len(seeds), desc="layouts", disable=not sys.stderr.isatty()))
+    return {name: [row[name] for row in rows] for name in policies}
+
+
+def summarise(results: list[EpisodeResult], timings: bool = True) -> dict[str, Any]:
+    """Success rate (with its 95 % Wilson interval), falls, how episodes ended, mean wall time,
+    perception errors and path deviations where the policy has them, and each episode.
+
+    ``timings=False`` leaves the wall times out: what is left depends on the seeds alone, so it is
+    the same whatever the number of worker processes (the CLI's ``--json``).
+    """
+    n = len(results)
+    successes = sum(r.success for r in results)
+    summary: dict[str, Any] = {
+        "success_rate": successes / n if n else 0.0,
+        "success_ci95": wilson_interval(successes, n),
+        "falls": sum(r.reason == "fell" for r in results),
+        "reasons": dict(collections.Counter(r.reason for r in results)),
+        "mean_wall_s": float(np.mean([r.wall_s for r in results])) if n else 0.0,
+    }
+    errors = [r.perception_error_m for r in results if r.perception_error_m is not None]
+    if any(r.perception_error_m is not None or r.path_deviation_m is not None for r in results):
+        summary["perception_error_m"] = _median_max(errors) | {"not_located": n - len(errors)}
+        names = sorted({k for r in results for k in (r.path_deviation_m or {})})
+        summary["path_deviation_m"] = {k: _median_max([r.path_deviation_m[k] for r in results
+                                                         if r.path_deviation_m and k in r.path_deviation_m])
+                                       for k in names}
+    summary["episodes"] = [asdict(r) for r in results]
+    if not timings:
+        del summary["mean_wall_s"]
+        for episode in summary["episodes"]:
+            del episode["wall_s"]
+    return summary
+
+
+def _median_max(values: list[float]) -> dict[str, float | None]:
+    if not values:
+        return {"median": None, "max": None}
+    return {"median": float(np.median(values)), "max": float(np.max(values))}
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """95 % Wilson score interval of a success rate (stays inside [0, 1] and is honest at 0 and n)."""
+    if n == 0:
+        return (0.0, 1.0)
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))

@@ -1,7 +1,0 @@
-"""``python -m hoap_actions``: the same command line as ``hoap-actions``."""
-
-import sys
-
-from hoap_actions.cli import main
-
-sys.exit(main())

@@ -1,0 +1,1 @@
+"""The pipelines behind ``hoap-actions discover``, ``learn`` and ``recognize``: recordings in, files out."""

@@ -1,0 +1,7 @@
+"""``python -m hoap_actions``: the same command line as ``hoap-actions``."""
+
+import sys
+
+from hoap_actions.apps.cli import main
+
+sys.exit(main())

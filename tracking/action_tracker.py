@@ -1,0 +1,507 @@
+"""A particle filter in action space: each particle is (a, phi, s), a class, its effect and its PHMM state.
+
+Propagation (the paper's "Action Tracking: PHMM-Based"):
+
+* ``s`` advances through PHMM ``a``'s left-right chain at the rate its transition matrix gives
+  (``1 - a_ss`` states per frame, the expected durations synthesis uses), times a speed drawn per
+  particle, so the filter holds fast and slow performers at once. ``s`` is continuous and the pose is
+  interpolated between neighbouring state means, as :meth:`ParametricHMM.synthesize` does: with a
+  discrete ``s`` a fast reach falls between two means, and particles that wait where the image fits
+  best never catch up.
+* In manipulations and removes, a small share of particles (:data:`LEAP_SHARE` per frame) leaps ahead
+  in its chain, by up to :data:`LEAP_CHAIN_SHARE` of its states: a demonstrator who lingers and then
+  moves fast (a slow lift before a quick withdrawal) leaves particles moving at a learned pace behind,
+  and near the block the image does not tell them apart until the arm has gone. Approach particles do
+  not leap: those that did finished their reach before the arm showed its goal, and the goal's
+  estimate suffered.
+* From the chain's last state the class ends with its learned exit probability; a successor is drawn
+  from the grammar and starts where the previous one ended (only the end of phi is estimated). The
+  effects of approach and remove are the hand's start and end, a manipulation's the object's: the
+  hand's end becomes the object's start at the height the two classes' training effects differ by.
+* The end moves by Brownian diffusion that cools as ``s`` advances (early frames say little about
+  where the hand is going), inside the range of its class's training ends widened by 5 cm.
+* A small share of particles (``REDRAW_SHARE`` per frame) draws its end afresh from its class's
+  training effects: the early frames of a reach say little about its goal, and once the particles
+  have agreed on a wrong one, diffusion alone cannot carry them across the table to the right one.
+* When the block is seen (:class:`~hoap_actions.vision.objects.ObjectLocator`), an
+  approach's redrawn end lies at the block, offset as the hand's training ends are from the objects'
+  training starts, and a manipulation starts at the block: the image proposes where the arm is going.
+* Each particle's pose strays from the state's mean by an offset that drifts within the state's
+  learned spread (the PHMM's observation density).
+
+Observation, eq. (8): the posed body is projected into the camera and its contour scored on the edge
+image, ``exp(-mean_C (1 - G(c))^2 / (2 sigma^2))``, in log form (so no likelihood underflows); eq. (9)
+sums the exponents over several views. Contour points below the table top (``BodyModel.hidden_below_z``)
+are not scored: the camera cannot see a hand hanging below the table. Edges alone reward any contour
+on clutter and cannot place an arm in front of a trunk of its colour, so with foreground masks
+(:mod:`~hoap_actions.vision.silhouette`) a silhouette term joins them: the share of the
+limbs' axis points off the person plus the share of the person (outside the trunk) the body leaves
+uncovered, over ``2 sigma_s^2``. When the object is seen (its position each frame), its displacement
+over the last few frames is evidence of the class: a manipulation moves it, approach and remove do not
+(discovery's own definition); without it a hand hovering at the block reads as a manipulation and the
+particles stay in one while the arm lets go. Weights carry over between frames; systematic resampling when
+the effective sample size falls below half the particles (resampling every frame collapses the end
+estimates before the arm has shown where it goes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.models.action_models import ActionModels, ClassModel
+from hoap_actions.primitives.base import check_is_fitted
+from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
+from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
+
+__all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]
+
+# sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen with the silhouette term
+# on a validation recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before
+# the arm shows it
+OBSERVATION_SIGMA = 0.8
+END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
+END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (cooling, never frozen)
+NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class
+SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (people vary +-30 %)
+SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
+LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
+LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
+REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
+POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
+OBJECT_MOVING_M = 0.01  # m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
+OBJECT_STILL_M = 0.003  # m, the same for a block at rest: the locator's jitter (median 0, 90 % below 3-4 mm on validation)
+OBJECT_END_SPREAD_M = 0.045  # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
+END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
+SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
+FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
+FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
+OBJECT_MOTION_FRAMES = 5  # frames over which the object's seen displacement is measured
+OBJECT_OUTLIER_SHARE = 0.1  # share of that displacement's density uniform over OBJECT_MOTION_RANGE_M (a mislocated block)
+OBJECT_MOTION_RANGE_M = 0.3  # m, the uniform's range: about the table region the block moves in
+MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
+# collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
+RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
+EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
+
+
+def _visible_mean(values: np.ndarray) -> np.ndarray:
+    """Row means over the finite entries (NaN: hidden points); 1 for a row with none (nothing seen)."""
+    seen = np.isfinite(values)
+    count = seen.sum(axis=1)
+    return np.where(count > 0, np.where(seen, values, 0.0).sum(axis=1) / np.maximum(count, 1), 1.0)
+
+
+def mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers: int) -> np.ndarray:
+    """The markers ``(n, 3 * n_markers)`` a class's PHMM means at continuous states ``states`` (n,) and full
+    effects ``phi`` (n, 6): the means of states ``floor(s)`` and ``ceil(s)`` at phi, interpolated, as
+    :meth:`ParametricHMM.synthesize` moves between them."""
+    states, phi = np.asarray(states, dtype=float), np.asarray(phi, dtype=float)
+    features, chain = model.phmm.mean_bar_.shape[1], model.phmm.n_states
+    if states.ndim != 1 or phi.shape != (states.size, 6) or not 0 < 3 * n_markers <= features:
+        raise InvalidInputError(f"mean_poses takes states (n,), phi (n, 6) and 1-{features // 3} markers; "
+                                f"got {states.shape}, {phi.shape} and {n_markers}")
+    if states.size and not (states.min() >= 0 and states.max() <= chain - 1):
+        raise InvalidInputError(f"states must lie in [0, {chain - 1}], the class's chain")
+    return _mean_poses(model, states, phi, n_markers)
+
+
+def _mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers: int) -> np.ndarray:
+    """:func:`mean_poses` without its checks: the filter's particles always lie on their chain."""
+    phmm = model.phmm
+    width = 3 * n_markers
+    reduced = np.einsum("nk,kp->np", phi - model.centre, model.basis)
+    low = np.floor(states).astype(int)
+    high = np.minimum(low + 1, phmm.n_states - 1)
+    share = (states - low)[:, None]
+    bend = phmm.effect_features_.transform(reduced) if phmm.V_.shape[2] else None
+
+    def mean_at(s: np.ndarray) -> np.ndarray:
+        means = phmm.mean_bar_[s, :width] + np.einsum("ndp,np->nd", phmm.W_[s, :width], reduced)
+        return means if bend is None else means + np.einsum("ndm,nm->nd", phmm.V_[s, :width], bend)
+
+    return (1.0 - share) * mean_at(low) + share * mean_at(high)
+
+
+@dataclass(frozen=True, eq=False)
+class TrackedFrame:
+    """What the tracker believes after one image.
+
+    ``class_id``, ``state`` and ``phi`` (6,) of the most probable particle; ``class_probabilities``
+    P(a) marginalised over phi and s; ``end_mean`` / ``end_std`` (3,) of phi's estimated end (m);
+    ``entropy`` (nats) of P(a, s); ``markers`` (M, 3) the weighted mean pose; ``log_likelihood`` of the
+    best particle; ``reinitialised`` when no particle could explain the image.
+    """
+
+    class_id: int
+    state: int
+    phi: np.ndarray
+    class_probabilities: Mapping[int, float]
+    end_mean: np.ndarray
+    end_std: np.ndarray
+    entropy: float
+    markers: np.ndarray
+    log_likelihood: float
+    reinitialised: bool = False
+
+
+class ActionTracker:
+    """Track a demonstrator in edge images with the learned action models (see the module docstring).
+
+    Args:
+        models: fitted :class:`ActionModels` (their class PHMMs, grammar and markers).
+        body: the :class:`BodyModel` that turns markers into a contour.
+        cameras: one or more :class:`~hoap_actions.vision.body_model.Projector` cameras, one
+            edge image (and, optionally, one foreground mask) each.
+        n_particles: particles (the paper used 400).
+        observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
+        silhouette_sigma: the silhouette term's sigma, used when :meth:`step` is given foreground masks.
+        object_still_m, object_moving_m: scales of the object's seen displacement for classes that leave it at
+            rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
+            the term off.
+        random_state: seed of the filter's draws.
+
+    Attributes:
+        hand_from_object: (3,) m, where an approach ends relative to the block (x, y; z is the end's height),
+            learned from the models' training effects; used when :meth:`step` is told where the block is.
+    """
+
+    def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
+                 n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
+                 silhouette_sigma: float = SILHOUETTE_SIGMA, object_still_m: float | None = OBJECT_STILL_M,
+                 object_moving_m: float = OBJECT_MOVING_M, random_state: int | np.random.Generator | None = None) -> None:
+        check_is_fitted(models)
+        if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
+            raise InvalidInputError(f"n_particles must be an int >= 1; got {n_particles!r}")
+        if not (observation_sigma > 0 and silhouette_sigma > 0 and end_diffusion_m >= 0):
+            raise InvalidInputError("observation_sigma and silhouette_sigma must be > 0 and end_diffusion_m >= 0")
+        if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):
+            raise InvalidInputError(f"object_still_m must be > 0 or None (off) and object_moving_m > 0; got "
+                                    f"{object_still_m!r}, {object_moving_m!r}")
+        if tuple(body.marker_names) != tuple(models.marker_names_):
+            raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
+                                    f"{list(models.marker_names_)}")
+        self.models, self.body = models, body
+        self.cameras = [cameras] if hasattr(cameras, "view_matrix") else list(cameras)
+        self.n_particles = int(n_particles)
+        self.observation_sigma = float(observation_sigma)
+        self.end_diffusion_m = float(end_diffusion_m)
+        self.silhouette_sigma = float(silhouette_sigma)
+        self.object_still_m = None if object_still_m is None else float(object_still_m)
+        self.object_moving_m = float(object_moving_m)
+        self._rng = np.random.default_rng(random_state)
+        self._object: np.ndarray | None = None
+        self._ids = np.array(sorted(models.classes_))
+        self._manipulations = np.array([cid for cid, c in models.classes_.items() if c.kind == MANIPULATION])
+        self._n_markers = len(models.marker_names_)
+        self._grammar_rows = self._successor_table()
+        width = 3 * self._n_markers
+        self._position_sd = {cid: np.sqrt(model.phmm.covars_[:, np.arange(width), np.arange(width)]
+                                          if model.phmm.covariance_type == "full" else model.phmm.covars_[:, :width])
+                             for cid, model in models.classes_.items()}
+        self.hand_from_object = self._hand_offset_from_object()
+        self._end_box = {}
+        for cid, model in models.classes_.items():
+            ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
+            self._end_box[cid] = (ends.min(axis=0) - END_MARGIN_M, ends.max(axis=0) + END_MARGIN_M)
+        self.reset()
+
+    # ----------------------------------------------------------------------------- set-up
+    def _successor_table(self) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
+        """Grammar as arrays: the start distribution over class ids, and each class's successors (EXIT = end)."""
+        grammar = self.models.grammar_
+        symbols = [int(s) for s in grammar.symbols_]
+        targets = np.array([*symbols, EXIT])
+        table = {int(s): grammar.transmat_[k + 1, 1:] for k, s in enumerate(symbols)}
+        return targets, grammar.transmat_[0, 1:], table
+
+    def _hand_offset_from_object(self) -> np.ndarray:
+        """Where an approach's end (the hand) lies from the object it reaches, learned from the training
+        effects: the approaches' mean end minus the manipulations' mean start (weighted by their counts) in
+        x and y; the approaches' mean end height in z."""
+        classes = self.models.classes_.values()
+        approach = [c.centre[3:] for c in classes if c.kind == APPROACH]
+        starts = [(len(c.phmm.train_phi_), c.centre[:3]) for c in classes if c.kind == MANIPULATION]
+        if not approach or not starts:
+            return np.zeros(3)
+        counts = np.array([n for n, _ in starts], float)
+        object_start = np.sum(counts[:, None] * np.array([x for _, x in starts]), axis=0) / counts.sum()
+        hand = np.mean(approach, axis=0)
+        return np.array([*(hand[:2] - object_start[:2]), hand[2]])
+
+    def reset(self) -> None:
+        """Particles drawn from the grammar's first classes at their first state, ends from training effects."""
+        targets, start_row, _ = self._grammar_rows
+        first = self._rng.choice(targets, size=self.n_particles, p=start_row / start_row.sum())
+        first = np.where(first == EXIT, targets[np.argmax(start_row[:-1])], first)
+        self.class_id = first.astype(int)
+        self.state = np.zeros(self.n_particles)
+        self.speed = np.exp(self._rng.normal(0.0, SPEED_SPREAD, self.n_particles))
+        self.offset = np.zeros((self.n_particles, self._n_markers * 3))
+        self.start = np.zeros((self.n_particles, 3))
+        self.end = np.zeros((self.n_particles, 3))
+        self.resting = np.zeros(self.n_particles, dtype=bool)
+        self.weights = np.full(self.n_particles, 1.0 / self.n_particles)
+        self._object_track: list[np.ndarray | None] = []
+        for cid in np.unique(self.class_id):
+            chosen = np.flatnonzero(self.class_id == cid)
+            effects = self._training_effects(cid, chosen.size)
+            self.start[chosen] = effects[:, :3]
+            self.end[chosen] = effects[:, 3:] + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
+
+    def _training_effects(self, class_id: int, n: int) -> np.ndarray:
+        """``n`` full effects (6,) drawn from class ``class_id``'s training effects."""
+        model = self.models.classes_[class_id]
+        reduced = model.phmm.train_phi_[self._rng.integers(0, len(model.phmm.train_phi_), size=n)]
+        return model.centre + np.einsum("np,kp->nk", reduced, model.basis)
+
+    # ----------------------------------------------------------------------------- the filter
+    def step(self, edges: np.ndarray | Sequence[np.ndarray],
+             foreground: np.ndarray | Sequence[np.ndarray] | None = None,
+             object_position: np.ndarray | None = None) -> TrackedFrame:
+        """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`) and, when given,
+        the foreground mask(s) (:class:`~hoap_actions.vision.silhouette.BackgroundSubtractor`), resample.
+        ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen)."""
+        images = self._per_camera(edges, "edge image")
+        masks = None if foreground is None else self._per_camera(foreground, "foreground mask")
+        self._see_object(object_position)
+        self._propagate()
+        markers = self.markers()
+        return self._weigh(markers, self._log_likelihood(markers, images, masks))
+
+    def step_markers(self, observed: np.ndarray, sigma_m: float = MARKER_SIGMA_M,
+                     object_position: np.ndarray | None = None) -> TrackedFrame:
+        """Propagate and weigh by observed 3-D markers ``(M, 3)`` (m; NaN: a marker not seen) instead of
+        images: each seen marker an isotropic Gaussian of ``sigma_m`` around the particle's. Recognition
+        from motion capture, and the filter's own error when vision is taken out of it.
+        ``object_position`` as for :meth:`step` (the object's captured centre)."""
+        observed = np.asarray(observed, dtype=float)
+        if observed.shape != (self._n_markers, 3):
+            raise InvalidInputError(f"observed markers must be ({self._n_markers}, 3) in m; got {observed.shape}")
+        if not (np.isfinite(sigma_m) and sigma_m > 0):
+            raise InvalidInputError(f"sigma_m must be > 0 (m); got {sigma_m!r}")
+        self._see_object(object_position)
+        self._propagate()
+        markers = self.markers()
+        seen = np.isfinite(observed).all(axis=1)
+        squared = np.sum((markers[:, seen] - observed[seen]) ** 2, axis=(1, 2))
+        return self._weigh(markers, -squared / (2.0 * sigma_m**2))
+
+    def _see_object(self, object_position: np.ndarray | None) -> None:
+        """Check and remember where the object is seen this frame (None: not seen)."""
+        if object_position is not None:
+            object_position = np.asarray(object_position, dtype=float)
+            if object_position.shape != (3,) or not np.all(np.isfinite(object_position)):
+                raise InvalidInputError(f"object_position must be a finite (3,) position in m or None; "
+                                        f"got {object_position!r}")
+        self._object = object_position
+        self._object_track = [*self._object_track[-OBJECT_MOTION_FRAMES:], object_position]
+
+    def _object_motion_log_likelihood(self) -> np.ndarray:
+        """Per particle, how well its class explains the object's seen displacement over the last
+        :data:`OBJECT_MOTION_FRAMES` frames: a manipulation moves the object, approach and remove leave it
+        still (discovery's own definition of the classes). Each a half-normal (``object_moving_m``,
+        ``object_still_m``) mixed with a share uniform over :data:`OBJECT_MOTION_RANGE_M` (a mislocated
+        block), divided by the window's length: the windows overlap, so each frame's motion is seen that many
+        times. 0 when the object was not seen at both ends or the term is off."""
+        now, before = self._object_track[-1], self._object_track[0]
+        if self.object_still_m is None or now is None or before is None or len(self._object_track) <= OBJECT_MOTION_FRAMES:
+            return np.zeros(self.n_particles)
+        moved = float(np.linalg.norm(now - before))
+
+        def density(scale: float) -> float:
+            half_normal = np.sqrt(2.0 / np.pi) / scale * np.exp(-0.5 * (moved / scale) ** 2)
+            return np.log((1.0 - OBJECT_OUTLIER_SHARE) * half_normal + OBJECT_OUTLIER_SHARE / OBJECT_MOTION_RANGE_M)
+
+        moving = np.isin(self.class_id, self._manipulations) & ~self.resting
+        return np.where(moving, density(self.object_moving_m), density(self.object_still_m)) / OBJECT_MOTION_FRAMES
+
+    def _weigh(self, markers: np.ndarray, likelihood: np.ndarray) -> TrackedFrame:
+        """Weights times the frame's likelihood (log) and the object's motion term, the frame's summary,
+        resampling when due; a frame that no particle explains starts the filter again from its prior."""
+        likelihood = likelihood + self._object_motion_log_likelihood()
+        reinitialised = not np.any(np.isfinite(likelihood))
+        if reinitialised:  # nothing explains the image: start again from the prior, never NaN
+            self.reset()
+            markers = self.markers()
+            likelihood = np.zeros(self.n_particles)
+        with np.errstate(divide="ignore"):  # a weight that underflowed to 0 stays 0 (log -inf), never NaN
+            log_weights = likelihood + np.log(self.weights)
+        weights = np.exp(log_weights - log_weights.max())
+        weights /= weights.sum()
+        frame = self._summary(weights, markers, float(likelihood.max()), reinitialised)
+        self.weights = weights
+        if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
+            self._resample(weights)
+        return frame
+
+    def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str) -> list[np.ndarray]:
+        """One checked image per camera: the camera's size, values in [0, 1]."""
+        images = [images] if isinstance(images, np.ndarray) else list(images)
+        if len(images) != len(self.cameras):
+            raise InvalidInputError(f"give one {what} per camera ({len(self.cameras)}); got {len(images)}")
+        for image, camera in zip(images, self.cameras):
+            if np.shape(image) != (camera.height, camera.width):
+                raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
+                                        f"got {np.shape(image)}")
+            if not (np.all(np.isfinite(image)) and np.min(image) >= 0.0 and np.max(image) <= 1.0):
+                raise InvalidInputError(f"a {what} must hold finite values in [0, 1]")
+        return images
+
+    def _propagate(self) -> None:
+        targets, _, table = self._grammar_rows
+        u = self._rng.random(self.n_particles)
+        leaving, successors = [], []
+        for cid in np.unique(self.class_id):
+            chosen = np.flatnonzero((self.class_id == cid) & ~self.resting)
+            if not chosen.size:
+                continue
+            model = self.models.classes_[cid]
+            k = model.phmm.n_states
+            rate = 1.0 - np.diagonal(model.phmm.transmat_)
+            self.speed[chosen] *= np.exp(self._rng.normal(0.0, SPEED_JITTER, chosen.size))
+            last = self.state[chosen] >= k - 1
+            s = np.minimum(self.state[chosen], k - 1)
+            leaps = self._rng.random(chosen.size) < LEAP_SHARE
+            leap = leaps * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size) * (model.kind != APPROACH)
+            self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
+            spread = self._position_sd[cid][s.astype(int)]
+            noise = self._rng.normal(0.0, 1.0, spread.shape) * spread
+            self.offset[chosen] = POSE_MEMORY * self.offset[chosen] + np.sqrt(1.0 - POSE_MEMORY**2) * noise
+            cooling = END_DIFFUSION_FLOOR + (1.0 - END_DIFFUSION_FLOOR) * (1.0 - s / max(k - 1, 1))
+            step = self._rng.normal(0.0, 1.0, (chosen.size, 3)) * (self.end_diffusion_m * cooling)[:, None]
+            self.end[chosen] = np.clip(self.end[chosen] + step, *self._end_box[cid])
+            redraw = chosen[self._rng.random(chosen.size) < REDRAW_SHARE]
+            if redraw.size and model.kind == APPROACH and self._object is not None:
+                self.end[redraw] = self._end_at_object(redraw.size)
+            elif redraw.size:
+                effects = self._training_effects(cid, redraw.size)
+                fresh = effects[:, 3:] - effects[:, :3] + self.start[redraw] if model.kind == MANIPULATION \
+                    else effects[:, 3:]  # a manipulation's end: a learned displacement from its own start
+                self.end[redraw] = fresh + self._rng.normal(0.0, NEW_END_SPREAD_M, (redraw.size, 3))
+            ending = chosen[last & (u[chosen] < model.exit_probability)]
+            leaving.append(ending)
+            successors.append(self._rng.choice(targets, size=ending.size, p=table[cid] / table[cid].sum()))
+        if leaving:  # after every class has moved: a particle that changes class moves once per frame
+            self._switch(np.concatenate(leaving), np.concatenate(successors))
+
+    def _end_at_object(self, n: int) -> np.ndarray:
+        """``n`` approach ends drawn around the hand's learned place at the seen block."""
+        centre = np.array([*(self._object[:2] + self.hand_from_object[:2]), self.hand_from_object[2]])
+        return centre + self._rng.normal(0.0, OBJECT_END_SPREAD_M, (n, 3))
+
+    def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
+        """Particles that finished their class start the next one where the last ended (EXIT: rest there).
+
+        A manipulation starts at the object: at the seen block after an approach (without one, at the
+        approach's end moved to the object's height), at the previous manipulation's end after a
+        manipulation (the paper's rule: the particle keeps its own account of where the pushed block is);
+        approach and remove start at the particle's own hand.
+        """
+        self.resting[particles[successors == EXIT]] = True
+        if not particles.size:
+            return
+        hands = self.markers(particles)[:, self.models.discovery_.hand_marker]
+        for cid in np.unique(successors[successors != EXIT]):
+            rows = np.flatnonzero(successors == cid)
+            chosen = particles[rows]
+            effects = self._training_effects(int(cid), chosen.size)
+            new = self.models.classes_[int(cid)]
+            if new.kind == MANIPULATION and self._object is not None:  # after an approach it starts at the seen block
+                start = np.tile([*self._object[:2], new.centre[2]], (chosen.size, 1))
+                chained = np.isin(self.class_id[chosen], self._manipulations)
+                start[chained] = self.end[chosen[chained]]  # after a manipulation, where that one ended
+                end = start + effects[:, 3:] - effects[:, :3]
+            elif new.kind == MANIPULATION:  # the object moves by a learned displacement
+                previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
+                start = self.end[chosen].copy()
+                start[:, 2] += new.centre[2] - previous_end_height
+                end = start + effects[:, 3:] - effects[:, :3]
+            else:
+                start, end = hands[rows], effects[:, 3:]
+            self.class_id[chosen], self.state[chosen] = int(cid), 0.0
+            self.speed[chosen] = np.exp(self._rng.normal(0.0, SPEED_SPREAD, chosen.size))
+            self.start[chosen] = start
+            self.end[chosen] = end + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
+
+    def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
+        """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
+        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`, unchecked), plus its offset."""
+        particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
+        out = np.empty((particles.size, self._n_markers, 3))
+        for cid in np.unique(self.class_id[particles]):
+            rows = np.flatnonzero(self.class_id[particles] == cid)
+            chosen = particles[rows]
+            phi = np.hstack([self.start[chosen], self.end[chosen]])
+            pose = _mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers) + self.offset[chosen]
+            out[rows] = pose.reshape(-1, self._n_markers, 3)
+        return out
+
+    def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray],
+                        masks: list[np.ndarray] | None = None) -> np.ndarray:
+        """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)`` over the contour points
+        not hidden by the table; off-image points count as 1. With foreground masks F, each view adds
+        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)`` (:meth:`_silhouette_misfit`)."""
+        total = np.zeros(self.n_particles)
+        for k, (image, camera) in enumerate(zip(images, self.cameras)):
+            bodies = self.body.project(markers, camera)
+            total -= _visible_mean((1.0 - self._sample(image, self.body.contour(bodies), camera)) ** 2) \
+                / (2.0 * self.observation_sigma**2)
+            if masks is not None:
+                total -= self._silhouette_misfit(markers, bodies, masks[k], camera) / (2.0 * self.silhouette_sigma**2)
+        return total
+
+    @staticmethod
+    def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector) -> np.ndarray:
+        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): 0 off the image, NaN for NaN (hidden) pixels."""
+        hidden = ~np.isfinite(pixels).all(axis=-1)
+        u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
+        v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)
+        inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
+        values = np.zeros(u.shape)
+        values[inside] = image[v[inside], u[inside]]
+        values[hidden] = np.nan
+        return values
+
+    def _silhouette_misfit(self, markers: np.ndarray, bodies: ProjectedBodies, mask: np.ndarray,
+                           camera: Projector) -> np.ndarray:
+        """Per particle: the share of its visible limb axis points off the foreground, plus the share of the
+        foreground (sampled on a grid, outside the trunk of the particles' mean pose) its body leaves
+        uncovered; 0 for a pose that matches the silhouette."""
+        off_person = _visible_mean(1.0 - self._sample(mask, self.body.interior(bodies), camera))
+        v, u = np.nonzero(mask[::FOREGROUND_STRIDE_PX, ::FOREGROUND_STRIDE_PX] > 0.5)
+        pixels = np.stack([u, v], axis=1) * FOREGROUND_STRIDE_PX
+        mean_pose = np.sum(self.weights[:, None, None] * markers, axis=0)[None]
+        pixels = pixels[~self.body.covers(self.body.project(mean_pose, camera), pixels, self.body.trunk)[0]]
+        if not len(pixels):  # no one beside the trunk: nothing for an arm to cover
+            return off_person
+        keep = np.unique(np.linspace(0, len(pixels) - 1, min(len(pixels), FOREGROUND_SAMPLES)).astype(int))
+        return off_person + 1.0 - np.mean(self.body.covers(bodies, pixels[keep]), axis=1)
+
+    def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool) -> TrackedFrame:
+        best = int(np.argmax(weights))
+        classes, of_class = np.unique(self.class_id, return_inverse=True)
+        probabilities = dict(zip(classes.tolist(), np.bincount(of_class, weights).tolist()))
+        _, of_pair = np.unique(np.stack([self.class_id, self.state.astype(int)]), axis=1, return_inverse=True)
+        p = np.bincount(of_pair.ravel(), weights)
+        p = p[p > 0]
+        mean = np.sum(weights[:, None] * self.end, axis=0)
+        std = np.sqrt(np.maximum(np.sum(weights[:, None] * (self.end - mean) ** 2, axis=0), 0.0))
+        return TrackedFrame(
+            class_id=int(self.class_id[best]), state=int(self.state[best]),
+            phi=np.r_[self.start[best], self.end[best]], class_probabilities=probabilities, end_mean=mean,
+            end_std=std, entropy=max(0.0, float(-np.sum(p * np.log(p)))),
+            markers=np.sum(weights[:, None, None] * markers, axis=0),
+            log_likelihood=best_ll, reinitialised=reinitialised)
+
+    def _resample(self, weights: np.ndarray) -> None:
+        """Systematic resampling: one uniform draw, N evenly spaced pointers into the cumulative weights."""
+        positions = (self._rng.random() + np.arange(self.n_particles)) / self.n_particles
+        index = np.minimum(np.searchsorted(np.cumsum(weights), positions), self.n_particles - 1)
+        self.class_id, self.state, self.speed = self.class_id[index], self.state[index], self.speed[index]
+        self.offset = self.offset[index]
+        self.start, self.end, self.resting = self.start[index], self.end[index], self.resting[index]
+        self.weights = np.full(self.n_particles, 1.0 / self.n_particles)

@@ -1,0 +1,293 @@
+"""Track a recorded demonstration from the demonstration world's camera (the paper's Figs. 11-12).
+
+Each frame of the episode is rendered again from its recording (the demonstrator's joint angles ``Q``
+and the block's pose ``O``: the same image the camera saw), turned into an edge image and given to
+the :class:`~hoap_actions.tracking.action_tracker.ActionTracker`. The true markers ``H``
+and the classes discovery reads from the block's trajectory are used only to score the track.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
+from hoap_actions.envs.sim import Camera
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.demonstration.datasets import Demonstrations
+from hoap_actions.primitives.discovery.estimator import UNKNOWN, effect_track
+from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
+from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame, mean_poses
+from hoap_actions.vision.body_model import BodyModel
+from hoap_actions.vision.edges import edge_image
+from hoap_actions.vision.objects import ObjectLocator
+from hoap_actions.vision.silhouette import BackgroundSubtractor
+
+__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "pose_floor", "side_cameras", "track_episode", "track_markers_episode", "tracking_video_frames"]
+
+SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
+TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
+FLOOR_PHASES = 1000  # continuous states tried per frame by pose_floor (a 40-state chain: 25 per state; a fast reach
+# moves up to about 9 cm between state means, so 5 per state left the floor up to 8.5 mm above the path's)
+CONVERGED_M = 0.02  # an approach's estimated end counts as found once it stays within this of the truth
+
+
+@dataclass
+class TrackResult:
+    """The track of one episode and its scores (see :meth:`summary`)."""
+
+    frames: list[TrackedFrame]
+    truth_markers: np.ndarray           # (T, M, 3)
+    truth_classes: np.ndarray           # (T,) discovery's classes from the object (UNKNOWN = -1)
+    approach_ends: list[tuple[int, int, np.ndarray]]  # (start, end, true end (3,)) of each approach piece
+    marker_names: tuple[str, ...]
+    particles: int
+    track_s: float                      # wall time of edge images + filter (rendering excluded)
+    torso_base: np.ndarray              # (3,) the body model's fixed trunk base (the lumbar joint)
+    silhouette: bool                    # scored with the foreground cue as well as the edges
+    edges: list[np.ndarray] = field(default_factory=list)
+    images: list[np.ndarray] = field(default_factory=list)
+    views: int = 1                      # cameras scored together (eq. 9); 0: tracked from markers
+    kinds: dict[int, str] = field(default_factory=dict)  # class id -> approach / manipulation / remove
+
+    def summary(self) -> dict:
+        """RMS errors (m) of the scored markers and of all, frame rate, approach-end error and frames to
+        find it, per-frame agreement of the recognised class with discovery's (and of its kind: approach,
+        manipulation or remove), and both class sequences."""
+        estimate = np.array([f.markers for f in self.frames])
+        distance = np.linalg.norm(estimate - self.truth_markers, axis=2)  # (T, M)
+        recognized = np.array([max(f.class_probabilities, key=f.class_probabilities.get) for f in self.frames])
+        known = self.truth_classes != UNKNOWN
+        errors, found = [], []
+        for start, end, target in self.approach_ends:
+            gap = np.linalg.norm(np.array([f.end_mean for f in self.frames[start:end]]) - target, axis=1)
+            errors.append(float(gap[-1]))
+            if gap[-1] < CONVERGED_M:  # found: the frames until it stays within CONVERGED_M to the end
+                outside = np.flatnonzero(gap >= CONVERGED_M)
+                found.append(int(outside[-1]) + 1 if outside.size else 0)
+        return {
+            "rms_m": {name: float(np.sqrt(np.mean(distance[:, self.marker_names.index(name)] ** 2)))
+                      for name in SCORED_MARKERS},
+            "rms_m_all": float(np.sqrt(np.mean(distance**2))),
+            "hz": len(self.frames) / self.track_s,
+            "particles": self.particles,
+            "cues": ["markers"] if self.views == 0 else ["edges", "silhouette"] if self.silhouette else ["edges"],
+            "views": self.views,
+            "frames": len(self.frames),
+            "phi_error_m": float(np.median(errors)) if errors else None,
+            "frames_to_converge": float(np.median(found)) if found else None,
+            "approaches_converged": len(found),
+            "approaches": len(self.approach_ends),
+            "frame_accuracy": float(np.mean(recognized[known] == self.truth_classes[known])) if known.any() else None,
+            "kind_accuracy": float(np.mean([self.kinds.get(int(a), "unknown") == self.kinds.get(int(b)) for a, b in
+                                            zip(recognized[known], self.truth_classes[known])]))
+            if known.any() and self.kinds else None,
+            "recognized": recognized.tolist(),
+            "truth": self.truth_classes.tolist(),
+        }
+
+
+def side_cameras(side: bool) -> tuple[Camera, ...]:
+    """The views added to the demonstration camera: the side camera when ``side``, else none."""
+    return (DEMONSTRATOR_SIDE_CAMERA,) if side else ()
+
+
+def track_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
+                  seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
+                  more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
+                  silhouette: bool = True, object_cue: bool = True,
+                  progress: Callable[[int, int], None] | None = None) -> TrackResult:
+    """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
+    track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
+    ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
+    puts unrelated objects on the table (:meth:`DemoScene.add_clutter`); ``image_noise`` adds Gaussian
+    noise of that standard deviation (share of the full intensity) to every image, drawn from ``seed``.
+    ``silhouette`` adds the foreground cue: each image against a picture of the empty table from the same
+    camera (taken once, before the episode, with its own noise); False scores edges alone (eq. 8)."""
+    if not (np.isfinite(image_noise) and 0.0 <= image_noise <= 1.0):
+        raise InvalidInputError(f"image_noise must be a standard deviation in [0, 1] (share of full intensity); "
+                                f"got {image_noise!r}")
+    if not demos.joint_names:
+        raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
+                                "record it again with this version: hoap-actions record")
+    ep = _bridged_episode(models, demos, episode)
+    scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
+    noise = np.random.default_rng([seed, episode])
+    try:
+        if clutter:
+            scene.add_clutter()
+        body = BodyModel(models.marker_names_, torso_base=scene.torso_base(), hidden_below_z=TABLE_TOP_Z)
+        views = (camera, *more_cameras)
+        tracker = ActionTracker(models, body, views, n_particles=particles, random_state=seed)
+        locate = ObjectLocator(camera, scene.config.object_size / 2.0) if object_cue else lambda image: None
+
+        def noisy(images: list[np.ndarray]) -> list[np.ndarray]:
+            if image_noise == 0:
+                return images
+            return [np.clip(image + noise.normal(0.0, 255.0 * image_noise, image.shape), 0, 255).astype(np.uint8)
+                    for image in images]
+
+        subtractors = [BackgroundSubtractor(empty) for empty in noisy([scene.render_background(view).rgb
+                                                                       for view in views])] if silhouette else None
+        frames, kept, pictures, spent = [], [], [], 0.0
+        for t in range(ep.T):
+            scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
+            images = noisy([scene.render(view).rgb for view in views])
+            started = time.perf_counter()
+            edges = [edge_image(image) for image in images]
+            masks = None if subtractors is None else [subtract(image) for subtract, image in zip(subtractors, images)]
+            frames.append(tracker.step(edges, masks, locate(images[0])))
+            spent += time.perf_counter() - started
+            if keep_images:
+                kept.append(edges[0])
+                pictures.append(images[0])
+            if progress is not None:
+                progress(t + 1, ep.T)
+    finally:
+        scene.close()
+    truth, approaches = _classes_and_approach_ends(models, ep)
+    return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
+                       body.torso_base, silhouette, kept, pictures, len(views), _kinds(models))
+
+
+def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
+                          seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True) -> TrackResult:
+    """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
+    (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
+    vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
+    gives the tracker the recorded object's centre, as the camera's block locator does."""
+    ep = _bridged_episode(models, demos, episode)
+    scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
+    try:
+        torso_base = scene.torso_base()
+    finally:
+        scene.close()
+    body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
+    tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
+    started = time.perf_counter()
+    observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
+    frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
+    spent = time.perf_counter() - started
+    truth, approaches = _classes_and_approach_ends(models, ep)
+    return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
+                       body.torso_base, silhouette=False, views=0, kinds=_kinds(models))
+
+
+def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_effect: bool = False,
+               phases: int = FLOOR_PHASES) -> np.ndarray:
+    """How close the models' mean poses can come to episode ``episode``: per frame, the distance ``(T, M)``
+    (m) of each marker from the pose of discovery's class of the frame at the segment's true effect (the
+    hand's start and end for approach and remove, the object's for a manipulation; ``fit_effect``: the
+    effect that fits the segment best, by Nelder-Mead over the class's effect coordinates from the true
+    one) and the best of ``phases`` continuous states per frame, with no offset. NaN rows: frames of no
+    known class. A tracker whose poses are these means plus offsets cannot do better than this without
+    the offsets; the floor tells the models' share of its error from the search's and the image's."""
+    if isinstance(phases, bool) or not isinstance(phases, (int, np.integer)) or phases < 2:
+        raise InvalidInputError(f"phases must be an int >= 2; got {phases!r}")
+    ep = _bridged_episode(models, demos, episode)
+    truth, _ = _classes_and_approach_ends(models, ep)
+    hand, n_markers = models.discovery_.hand_marker, len(models.marker_names_)
+    out = np.full((ep.T, n_markers), np.nan)
+    for cid, start, end in runs(truth):
+        if cid == UNKNOWN:
+            continue
+        model = models.classes_[cid]
+        states = np.linspace(0.0, model.phmm.n_states - 1, phases)
+        observed = ep.H[start:end]
+
+        def distances(phi: np.ndarray) -> np.ndarray:
+            poses = mean_poses(model, states, np.tile(phi, (phases, 1)), n_markers).reshape(phases, n_markers, 3)
+            d = np.linalg.norm(poses[None] - observed[:, None], axis=3)  # (frames, phases, M)
+            return d[np.arange(len(observed)), np.argmin(np.mean(d**2, axis=2), axis=1)]
+
+        track, _ = effect_track(model.kind, ep.O, ep.H[:, hand])
+        phi = np.r_[track[start], track[end - 1]]
+        best = distances(phi)
+        if fit_effect and model.basis.shape[1]:
+            reduced = (phi - model.centre) @ model.basis
+            outside = phi - model.centre - reduced @ model.basis.T  # the part of phi the class never varied
+            fitted = minimize(lambda r: float(np.mean(distances(model.centre + r @ model.basis.T + outside) ** 2)),
+                              reduced, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-7, "maxiter": 300})
+            candidate = distances(model.centre + fitted.x @ model.basis.T + outside)
+            best = candidate if np.mean(candidate**2) < np.mean(best**2) else best
+        out[start:end] = best
+    return out
+
+
+def _bridged_episode(models: ActionModels, demos: Demonstrations, episode: int):
+    """Episode ``episode`` of ``demos`` with its marker gaps bridged (the truth a track is scored against),
+    after checking that it exists and has the models' markers."""
+    if not 0 <= episode < len(demos):
+        raise InvalidInputError(f"episode must be in [0, {len(demos) - 1}]; got {episode}")
+    if tuple(demos.marker_names) != tuple(models.marker_names_):
+        raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
+                                f"{list(models.marker_names_)}")
+    return clean_demonstrations(dataclasses.replace(demos, episodes=(demos[episode],)))[0]
+
+
+def _kinds(models: ActionModels) -> dict[int, str]:
+    return {int(cid): c.kind for cid, c in models.classes_.items()}
+
+
+def _classes_and_approach_ends(models: ActionModels, ep) -> tuple[np.ndarray, list[tuple[int, int, np.ndarray]]]:
+    """Discovery's class of each frame (from the block) and each approach's (start, end, true hand end)."""
+    truth = models.discovery_.predict(ep.O, [ep.T])[0]
+    hand = models.discovery_.hand_marker
+    kinds = _kinds(models)
+    approaches = [(start, end, ep.H[end - 1, hand]) for cid, start, end in runs(truth)
+                  if cid != UNKNOWN and kinds.get(cid) == "approach"]
+    return np.asarray(truth), approaches
+
+
+def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:
+    """Fig. 12 as video frames: the edge image beside the camera image with the estimated body (red), the
+    true markers' body (green, thin) and the estimated end of the current primitive (red dot)."""
+    import cv2
+
+    if not result.images:
+        raise InvalidInputError("the track kept no images: track with keep_images=True to film it")
+    out = []
+    for t in range(0, len(result.frames), every):
+        frame = result.frames[t]
+        picture = body.draw(result.images[t], result.truth_markers[t], DEMONSTRATOR_CAMERA, (0, 160, 0))
+        picture = body.draw(picture, frame.markers, DEMONSTRATOR_CAMERA, (230, 0, 0), thickness=2)
+        u, v = DEMONSTRATOR_CAMERA.project(frame.end_mean)[0]
+        if np.isfinite(u) and np.isfinite(v):
+            cv2.circle(picture, (int(round(u)), int(round(v))), 4, (230, 0, 0), -1, lineType=cv2.LINE_AA)
+        cv2.putText(picture, f"class {frame.class_id}  s {frame.state}  H {frame.entropy:.2f}", (6, 16),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        edges = cv2.cvtColor((result.edges[t] * 255).astype(np.uint8), cv2.COLOR_GRAY2RGB)
+        out.append(np.hstack([edges, picture]))
+    return out
+
+
+def effect_figure(result: TrackResult, path, fps: float) -> None:
+    """Fig. 11: the estimated end of the current primitive (x, y) over time, one standard deviation
+    around it, and the true end of each approach."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.arange(len(result.frames)) / fps
+    mean = np.array([f.end_mean for f in result.frames]) * 100
+    std = np.array([f.end_std for f in result.frames]) * 100
+    fig, ax = plt.subplots(figsize=(7, 3.2), constrained_layout=True)
+    for k, (name, colour) in enumerate((("x", "tab:red"), ("y", "tab:green"))):
+        ax.plot(t, mean[:, k], color=colour, label=f"estimated end {name}")
+        ax.fill_between(t, mean[:, k] - std[:, k], mean[:, k] + std[:, k], color=colour, alpha=0.2)
+        for start, end, target in result.approach_ends:
+            ax.hlines(target[k] * 100, start / fps, end / fps, colors=colour, linestyles="dotted")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("cm (scene frame)")
+    ax.set_title("Fig. 11: the tracked effect; dotted: each approach's true end")
+    ax.legend(fontsize=8, loc="best")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,75 @@
+"""Where the manipulated block is: its colour in the camera image, taken back onto the plane of its centre.
+
+An approach ends at the object it reaches for, and a manipulation starts there. The arm's first frames
+say little about which way it goes, and particles that have agreed on a wrong goal are not drawn back by
+the arm's contour alone; the block itself is in view. :class:`ObjectLocator` finds it (the largest blob
+of its colour) and returns its centre in the scene frame, for the tracker to draw goals around
+(a proposal from the image, as ICONDENSATION draws particles from a detector).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.vision.body_model import Projector
+from hoap_actions.vision.edges import check_image
+
+__all__ = ["ObjectLocator"]
+
+# The demonstration block (demo_object.urdf, RGB 0.85 0.25 0.20) in OpenCV's HSV (hue 0-180): rendered at hue
+# 0-6 and saturation 190-200; the skin of the hands and head is at hue 12, saturation 85, the wooden table at
+# hue 16, saturation 106 (demonstration camera, validation recording).
+BLOCK_HSV_RANGES = (((0, 150, 60), (8, 255, 255)), ((172, 150, 60), (180, 255, 255)))  # (low, high); red wraps round hue 0
+MIN_BLOB_PX = 6  # a 5 cm block is about 190 px at 320 x 240; fewer than this is noise or a sliver behind the hand
+PLANE_GRID_M = 0.5  # m, half-size of the square of plane points the homography is fitted on
+
+
+class ObjectLocator:
+    """The block's centre (m, scene frame) from one camera image, or None when it is not seen.
+
+    Args:
+        camera: the camera the images come from.
+        plane_z: height (m) of the block's centre; the blob's centroid is taken onto this plane (a
+            homography: exact for a pinhole camera).
+        hsv_ranges: (low, high) OpenCV HSV bounds of the block's colour, any of which counts.
+    """
+
+    def __init__(self, camera: Projector, plane_z: float,
+                 hsv_ranges: tuple[tuple[tuple[int, int, int], tuple[int, int, int]], ...] = BLOCK_HSV_RANGES) -> None:
+        if not np.isfinite(plane_z):
+            raise InvalidInputError(f"plane_z must be a finite height in m; got {plane_z!r}")
+        self.camera, self.plane_z = camera, float(plane_z)
+        self.hsv_ranges = [(np.array(low, np.uint8), np.array(high, np.uint8)) for low, high in hsv_ranges]
+        grid = np.linspace(-PLANE_GRID_M, PLANE_GRID_M, 5)
+        plane = np.array([[x, y, self.plane_z] for x in grid for y in grid])
+        pixels = np.asarray(camera.project(plane), float)
+        seen = np.isfinite(pixels).all(axis=1)
+        if seen.sum() < 4:
+            raise InvalidInputError(f"the camera does not see the plane z = {plane_z} m")
+        self._to_plane, _ = cv2.findHomography(pixels[seen], plane[seen, :2])
+
+    def __call__(self, image: np.ndarray) -> np.ndarray | None:
+        arr = check_image(image)
+        if arr.ndim != 3 or arr.shape[:2] != (self.camera.height, self.camera.width):
+            raise InvalidInputError(f"a colour image ({self.camera.height}, {self.camera.width}, 3) is needed; "
+                                    f"got {arr.shape}")
+        if arr.dtype != np.uint8:
+            arr = np.rint(np.clip(arr, 0.0, 1.0) * 255.0).astype(np.uint8)
+        hsv = cv2.cvtColor(np.ascontiguousarray(arr[..., :3]), cv2.COLOR_RGB2HSV)
+        mask = np.zeros(hsv.shape[:2], np.uint8)
+        for low, high in self.hsv_ranges:
+            mask |= cv2.inRange(hsv, low, high)
+        count, _, stats, centroids = cv2.connectedComponentsWithStats(mask)
+        if count < 2:
+            return None
+        biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+        if stats[biggest, cv2.CC_STAT_AREA] < MIN_BLOB_PX:
+            return None
+        return self.to_plane(centroids[biggest][None])[0]
+
+    def to_plane(self, pixels: np.ndarray) -> np.ndarray:
+        """The points (N, 3) of the plane z = ``plane_z`` that the camera sees at ``pixels`` (N, 2) (u, v)."""
+        xy = cv2.perspectiveTransform(np.asarray(pixels, np.float64).reshape(-1, 1, 2), self._to_plane).reshape(-1, 2)
+        return np.column_stack([xy, np.full(len(xy), self.plane_z)])
