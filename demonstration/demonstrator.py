@@ -6,55 +6,11 @@ and back to rest with the arm hanging beside the chair. This module scripts the 
 their physics; what a task and a recording are is :mod:`~hoap_actions.demonstration.tasks`, the timing of
 every path :mod:`~hoap_actions.demonstration.minimum_jerk`, the planning IK :mod:`~hoap_actions.demonstration.arm_ik`.
 
-- Phase labels (hidden ground truth, evaluation only) follow the paper's decomposition, where a
-  manipulation is what changes the object (its Fig. 7: push, move, rotate between approach and remove;
-  "the grasping movement could not be detected"). Each frame is labelled with the part of the
-  demonstrator's *plan* it executes, never from the recorded object trajectory (labels read off ``O``
-  would make an evaluation of methods that read ``O`` circular):
-
-  - approach: the reach from rest; for a grasp also the fingers closing on the block; for a push also
-    the first ``gap`` metres of the push path, the hand-block gap the demonstrator measures before
-    pushing, so the push label starts where the hand reaches the block;
-  - the manipulation (``push-<direction>``, ``move-<direction>``, ``rotate``): the rest of the push
-    path, to where the hand (and the block with it) stops; the lift, carry and set-down of a move; the
-    turn of a rotate (the block raised 2 mm, turned, held there);
-  - remove: letting go and leaving: after a push the hand easing off the block (``PUSH_RELAX``); after
-    a grasp the hand holding still on the placed block, the grasp constraint's release (the block then
-    settles the set-down clearance, ``PLACE_CLEARANCE``, by physics) and the fingers opening; then the
-    way back to rest.
-
-  :data:`LABELS_VERSION` names this labelling; datasets record it (``generator["labels_version"]``).
-
-- Motion model. The hand (an IK *site*: the palm centre for pushes, the pinch point between index and
-  thumb for grasps) follows minimum-jerk paths (Flash and Hogan): each segment is a curve timed so that
-  its arc length follows ``L (10 t^3 - 15 t^4 + 6 t^5)``, hence a bell-shaped speed that starts and ends
-  at zero. Reaches are cubic Bezier curves through randomly offset via points: up out of the hanging
-  pose (the elbow lifts the hand close to the body: a seated person's elbow is at table height), over
-  the table's edge, down onto the target; pushes and carries are straight or arched minimum-jerk
-  paths. Trial-to-trial variability: durations about +-15 % (a factor per episode times +-5 % per
-  segment), via points ~1.5 cm, end points ~1 cm where that leaves the effect unchanged (across a
-  pushed face, at rest), ~2 mm on a pinch.
-- Hand postures are chosen as a person would, by comfort: of a few candidate hand orientations (push
-  forward/backward: palm to the body with the fingers pointing left, or palm forward with them
-  pointing right, level or 45 degrees down; grasp: fingers along each of the block's four face normals)
-  the one a static IK reaches with the least residual and torso lean, at the start and end of the act.
-  A bare approach (the ``approach-grid`` reaching experiment) always takes the face whose normal points
-  most away from the body, as a subject repeating one reach does: picking by comfort there switches
-  the grasp by 90 degrees at the table's near corners, a jump no smooth model of reaching follows.
-- Inverse kinematics: placo, fixed base (``mask_fbase(True)``), joint and velocity limits, a few QP
-  steps per frame; soft position task on the site; soft orientation task that starts from the
-  orientation the hand takes when left free and turns smoothly to the one needed (so the hand does not
-  flip), released again on the way back; posture regularisation (lumbar joints stiffer than the arm;
-  arm targets rest -> lifted -> relaxed working posture and back). Each reach is first solved
-  kinematically and checked against the table's edge and the block; if the hand would touch them, the
-  via points are raised and drawn back and it is solved again. Then it is executed.
-- Physics: the PyBullet arm follows the IK joint angles by position control with human-like torque
-  and speed limits; the block moves only by physics. Pushes are palm or back-of-hand contacts. Grasps
-  use a documented *grasp constraint*: the index and thumb close on the block by position control, each
-  stopping where it comes within 3 mm of the block (a guarded close: neither shoves the block or
-  squeezes it); once both have stopped, a fixed constraint holds the block to the palm (a
-  1-DOF-finger pinch of a 5 cm cube is not a reliable friction grasp in PyBullet). It is removed on
-  release, before the fingers open, so the block is set down by physics.
+Phase labels (hidden ground truth, evaluation only) come from the demonstrator's *plan*, never from
+the recorded object trajectory, so evaluating methods that read ``O`` is not circular;
+:data:`LABELS_VERSION` names the labelling. The labels, the motion model (minimum-jerk paths with
+trial-to-trial variability), the choice of hand posture by comfort, the IK and the physics of pushes and
+grasps are described in ``docs/demonstrator.md``.
 """
 
 from __future__ import annotations

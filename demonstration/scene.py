@@ -19,7 +19,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.demonstration.bodies import REFERENCE_HEIGHT_M, human_urdf
-from hoap_actions.envs.sim import Camera, CameraImage, Sim
+from hoap_actions.envs.camera import Camera, CameraImage
+from hoap_actions.envs.sim import Sim
 from hoap_actions.envs.world import HUMAN_ACTIVE_REGION_SIZE, HUMAN_TO_ROBOT_OFFSET, HUMAN_TO_ROBOT_SCALE
 from hoap_actions.errors import InvalidInputError
 

@@ -21,7 +21,8 @@ from hoap_actions.controllers.hand_control import RobotDescription
 from hoap_actions.envs.controls import CONTROL_MODES, make_controller
 from hoap_actions.envs.robot import ROBOT_MODELS, Robot
 from hoap_actions.envs.scene import Scene
-from hoap_actions.envs.sim import Camera, Sim, check_image_size
+from hoap_actions.envs.camera import Camera, check_image_size
+from hoap_actions.envs.sim import Sim
 from hoap_actions.envs.task import Task
 from hoap_actions.errors import EnvClosedError, InvalidInputError
 

@@ -16,7 +16,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hoap_actions.envs import world
-from hoap_actions.envs.sim import Camera, Sim
+from hoap_actions.envs.camera import Camera
+from hoap_actions.envs.sim import Sim
 from hoap_actions.errors import InvalidInputError
 
 PEG_RADIUS = 0.0075  # m

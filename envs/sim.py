@@ -10,7 +10,6 @@ import contextlib
 import functools
 import logging
 import os
-import subprocess
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -18,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hoap_actions.envs.camera import Camera, CameraImage
+from hoap_actions.envs.display import check_display
 from hoap_actions.errors import DisplayUnavailableError, EnvClosedError, InvalidInputError
 from hoap_actions.urdf import urdf_path
 
@@ -48,67 +49,6 @@ from pybullet_utils.bullet_client import BulletClient  # noqa: E402
 logger = logging.getLogger(__name__)
 
 TIMESTEP = 1.0 / 240.0  # PyBullet's default rate; the controllers tick at this rate
-MAX_IMAGE_SIDE = 4096  # px, largest camera width or height: TinyRenderer allocates the whole frame up front
-
-
-def check_image_size(width: object, height: object, what: str = "camera") -> None:
-    """Image sides must be whole pixels in 1..:data:`MAX_IMAGE_SIDE` (PyBullet aborts the process on
-    negative sizes and runs out of memory on huge ones)."""
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_IMAGE_SIDE:
-            raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got {value!r}")
-
-
-_X_PROBE = """
-import ctypes, ctypes.util, os, sys
-library = ctypes.util.find_library("X11")
-if library is None:
-    sys.exit(3)
-xlib = ctypes.CDLL(library)
-xlib.XOpenDisplay.restype = ctypes.c_void_p
-xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
-xlib.XQueryExtension.argtypes = [ctypes.c_void_p, ctypes.c_char_p] + [ctypes.POINTER(ctypes.c_int)] * 3
-xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
-display = xlib.XOpenDisplay(os.environ["DISPLAY"].encode())
-if not display:
-    sys.exit(4)
-codes = [ctypes.c_int() for _ in range(3)]
-has_glx = xlib.XQueryExtension(display, b"GLX", *(ctypes.byref(c) for c in codes))
-xlib.XCloseDisplay(display)
-sys.exit(0 if has_glx else 5)
-"""
-"""Asks the X server named by DISPLAY, through Xlib, whether PyBullet's window can open there. It runs
-in a child process: Xlib used in this process before PyBullet's window thread made that thread's own
-connection fail under Xvfb in 4 of 8 runs of three window starts (3 of 10 with XInitThreads called first)."""
-X_PROBE_TIMEOUT_S = 10.0
-
-
-def check_display() -> None:
-    """Raise :class:`DisplayUnavailableError` unless PyBullet's GUI can open a window here.
-
-    On Linux PyBullet's GUI ends the whole process (exit 1, no exception) when it cannot reach an X
-    server or the server has no OpenGL (GLX); so ask the X server first (:data:`_X_PROBE`). Other
-    platforms open native windows and are not checked.
-    """
-    if not sys.platform.startswith("linux"):
-        return
-    hint = "use render_mode='rgb_array' (headless), or run under a virtual X server (xvfb-run)"
-    name = os.environ.get("DISPLAY")
-    if not name:
-        raise DisplayUnavailableError(f"render_mode='human' needs a display, but DISPLAY is not set; {hint}")
-    try:
-        probe = subprocess.run([sys.executable, "-c", _X_PROBE], timeout=X_PROBE_TIMEOUT_S, capture_output=True)
-        code = probe.returncode
-    except subprocess.TimeoutExpired:
-        code = 4
-    if code == 3:
-        raise DisplayUnavailableError(f"render_mode='human' needs the X11 library (libX11), which is not installed; {hint}")
-    if code == 4:
-        raise DisplayUnavailableError(f"render_mode='human' cannot open the X display DISPLAY={name!r}; {hint}")
-    if code == 5:
-        raise DisplayUnavailableError(f"the X display {name!r} has no OpenGL (GLX extension), which PyBullet's GUI needs; {hint}")
-    if code != 0:
-        raise DisplayUnavailableError(f"checking the X display {name!r} failed (exit {code}); {hint}")
 
 
 class _Client(BulletClient):
@@ -140,77 +80,6 @@ class JointInfo:
     upper: float
     max_force: float
     max_velocity: float
-
-
-@dataclass(frozen=True)
-class Camera:
-    """A pinhole camera fixed in the world: eye and target points (m), vertical field of view (deg)."""
-
-    eye: tuple[float, float, float]
-    target: tuple[float, float, float]
-    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    fov_deg: float = 60.0
-    near: float = 0.02
-    far: float = 3.0
-    width: int = 320
-    height: int = 240
-
-    def __post_init__(self) -> None:
-        check_image_size(self.width, self.height)
-        eye, target, up = (np.asarray(v, float) for v in (self.eye, self.target, self.up))
-        if any(v.shape != (3,) or not np.all(np.isfinite(v)) for v in (eye, target, up)):
-            raise InvalidInputError("camera eye, target and up must be finite 3-vectors (m)")
-        if np.linalg.norm(target - eye) < 1e-9 or np.linalg.norm(np.cross(target - eye, up)) < 1e-9:
-            raise InvalidInputError("camera eye and target must differ, and up must not be parallel to the view direction")
-        if not 0.0 < self.fov_deg < 180.0:
-            raise InvalidInputError(f"camera fov_deg must be in (0, 180) degrees; got {self.fov_deg!r}")
-        if not 0.0 < self.near < self.far < np.inf:
-            raise InvalidInputError(f"camera needs 0 < near < far (m); got near={self.near!r}, far={self.far!r}")
-
-    def view_matrix(self) -> np.ndarray:
-        """4x4 world-to-camera matrix (OpenGL convention, camera looks down its -z)."""
-        eye, target, up = (np.asarray(v, float) for v in (self.eye, self.target, self.up))
-        forward = target - eye
-        forward /= np.linalg.norm(forward)
-        side = np.cross(forward, up)
-        side /= np.linalg.norm(side)
-        true_up = np.cross(side, forward)
-        view = np.eye(4)
-        view[0, :3], view[1, :3], view[2, :3] = side, true_up, -forward
-        view[:3, 3] = -view[:3, :3] @ eye
-        return view
-
-    def projection_matrix(self) -> np.ndarray:
-        """4x4 OpenGL perspective projection for this camera's aspect ratio."""
-        aspect = self.width / self.height
-        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2.0)
-        n, fa = self.near, self.far
-        return np.array(
-            [
-                [f / aspect, 0.0, 0.0, 0.0],
-                [0.0, f, 0.0, 0.0],
-                [0.0, 0.0, (fa + n) / (n - fa), 2.0 * fa * n / (n - fa)],
-                [0.0, 0.0, -1.0, 0.0],
-            ]
-        )
-
-    def project(self, points: np.ndarray) -> np.ndarray:
-        """Pixel coordinates (u right, v down) of world points ``(N, 3)``; returns ``(N, 2)``."""
-        pts = np.atleast_2d(np.asarray(points, float))
-        homogeneous = np.c_[pts, np.ones(len(pts))] @ (self.projection_matrix() @ self.view_matrix()).T
-        ndc = homogeneous[:, :2] / homogeneous[:, 3:4]
-        u = (ndc[:, 0] + 1.0) * 0.5 * self.width
-        v = (1.0 - ndc[:, 1]) * 0.5 * self.height
-        return np.c_[u, v]
-
-
-@dataclass(frozen=True)
-class CameraImage:
-    """One rendered view: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres, ``segmentation`` (H, W) body ids."""
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    segmentation: np.ndarray
 
 
 @dataclass(frozen=True)

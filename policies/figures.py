@@ -10,7 +10,7 @@ import numpy as np
 
 from hoap_actions.vision.perception import Detections
 from hoap_actions.envs import scene as scene_module
-from hoap_actions.envs.sim import Camera
+from hoap_actions.envs.camera import Camera
 
 __all__ = ["PATH_COLOURS", "draw_episode"]
 

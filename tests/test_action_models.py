@@ -12,7 +12,8 @@ import pytest
 
 from hoap_actions.apps.cli import main
 from hoap_actions.errors import DataExistsError, DataFileError, ExtrapolationWarning, InvalidInputError, NotFittedError
-from hoap_actions.primitives.models.action_models import ActionModels, marker_features
+from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.class_models import marker_features
 from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.labels import runs

@@ -44,7 +44,7 @@ def test_tracks_an_episode_from_rendered_frames(small):
 
 def test_several_views_are_scored_together(small):
     """Eq. (9): a second camera's edge image joins the first's; the track stays as good on the trunk."""
-    from hoap_actions.envs.sim import Camera
+    from hoap_actions.envs.camera import Camera
 
     side = Camera(eye=(-0.2, -0.9, 0.45), target=(-0.30, 0.0, 0.10), fov_deg=55.0, width=160, height=120)
     summary = track_episode(load_default_models(), small, 3, particles=50, seed=0, more_cameras=(side,)).summary()

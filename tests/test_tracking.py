@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.models.shipped import load_default_models
-from hoap_actions.envs.sim import Camera
+from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker, mean_poses
 from hoap_actions.vision.body_model import BodyModel, Capsule

@@ -52,7 +52,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.models.action_models import ActionModels, ClassModel
+from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
-from hoap_actions.envs.sim import Camera
+from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.demonstration.datasets import Demonstrations

@@ -20,7 +20,7 @@ __all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "ProjectedBodies", "Projector
 
 
 class Projector(Protocol):
-    """A pinhole camera (:class:`hoap_actions.envs.sim.Camera` is one): its image size, world points
+    """A pinhole camera (:class:`hoap_actions.envs.camera.Camera` is one): its image size, world points
     (N, 3) to pixels (N, 2) (u right, v down), and its 4x4 world-to-camera matrix."""
 
     width: int

@@ -1,7 +1,7 @@
 """Locate the pegs and the board's holes in world coordinates from one overhead rgb-d image.
 
 Its one job: turn a rendered ``rgb`` (H, W, 3) uint8 image, its ``depth`` (H, W, metres along the
-camera's view axis) and the :class:`~hoap_actions.envs.sim.Camera` that took it into peg and hole
+camera's view axis) and the :class:`~hoap_actions.envs.camera.Camera` that took it into peg and hole
 positions (m) with a confidence, never guessing a position it did not see.
 
 Method (OpenCV): every pixel is back-projected to a world point with its depth and the camera's
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 from hoap_actions.envs import scene, world
-from hoap_actions.envs.sim import Camera
+from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
 from scipy.optimize import least_squares
 
@@ -137,7 +137,7 @@ def _pixel_points(camera: Camera, depth: np.ndarray) -> np.ndarray:
 # -------------------------------------------------------------------------------------- validation
 def _check_inputs(rgb: object, depth: object, camera: object) -> tuple[np.ndarray, np.ndarray]:
     if not isinstance(camera, Camera):
-        raise InvalidInputError(f"camera must be a hoap_actions.envs.sim.Camera; got {type(camera).__name__}")
+        raise InvalidInputError(f"camera must be a hoap_actions.envs.camera.Camera; got {type(camera).__name__}")
     shape = (camera.height, camera.width)
     if not isinstance(rgb, np.ndarray) or rgb.dtype != np.uint8 or rgb.shape != (*shape, 3):
         got = f"{rgb.dtype} {rgb.shape}" if isinstance(rgb, np.ndarray) else type(rgb).__name__

@@ -19,49 +19,8 @@ Action Primitive Classes According to the Effect on Objects" of the 2010 paper (
 5. the segmentation is carried over to the arm-marker trajectories H_i: each primitive becomes an
    equivalence class of H segments, each with its effect phi = (initial, final) 3-D location.
 
-Choices the paper leaves open, made here and why:
-
-* **Pose metric.** Arc length and rest detection use ``|dp| + rotation_radius * |dr|`` (metres): a
-  rotation counts as the path of a point on the object's rim, so a pure rotation gets Gaussians too.
-  ``reg_covar`` is likewise in m^2 and is ``reg_covar / rotation_radius**2`` rad^2 on the rotation
-  axes, so position and rotation have the same resolution. By default it follows ``spacing``
-  (``spacing**2 / 48``), so ``spacing`` and ``threshold`` are the only scales of the method.
-* **Relative pose.** Position minus the initial position; rotation ``R_t R_0^-1`` as a rotation
-  vector (the difference in the rotation group, equal to subtraction for rotations about one axis).
-  The initial pose is the mean over the leading rest, so noise on frame 0 does not shift everything.
-* **Stationary parts.** The object rests before it is touched (approach) and after it is released
-  (remove). A piece must not mix rest and motion, or the approach Gaussian of every push direction
-  would lean its own way and never merge. So each trajectory is cut into a leading rest, the motion,
-  and a trailing rest; the object is at rest while each frame stays within ``spacing / 4`` (the
-  resolution, :attr:`PrimitiveDiscovery.rest_tolerance`) of the mean of the frames before it (after
-  it, for the trailing rest; a mean, so sensor noise on one reference frame cannot end a rest), and
-  the boundary is walked back (forward) to where the displacement starts to grow, but not into
-  displacements below ``REST_FLOOR * rest_tolerance``: the micrometre creep of a settling object
-  (monotonic in noise-free simulation) is rest, not the start of a motion. Each rest is one
-  Gaussian however long it lasts; the motion is cut every ``spacing`` of arc length (the last piece
-  is 0.5 to 1.5 spacings), the arc length being measured with a dead band of ``rest_tolerance`` so
-  sensor jitter does not add up. Rest and motion states are never merged with each other, and
-  Viterbi decodes rest frames with rest states and moving frames with motion states only: left
-  free, a broad motion Gaussian can swallow a trailing rest whose merged rest state sits a few mm
-  off (the demonstration then has no remove), or a rest state the first frames of a motion.
-* **Symmetric KL.** Eq. (1) is D_KL(Q||P); merging is symmetric in the two states, so the merge test
-  uses ``(D_KL(Q||P) + D_KL(P||Q)) / 2`` (the log-determinant terms cancel). The result then does not
-  depend on which state came from the joint HMM.
-* **One-to-one merging.** Among the state pairs below the threshold, each new state merges with at
-  most one joint state and vice versa (a linear assignment that merges as many pairs as possible,
-  then the closest), so a chain keeps its temporal resolution.
-* **Order** (``merging``). The paper's fold (``"fold"``) depends on the order of the
-  demonstrations: shuffling a ``paper`` recording gave 11 to 13 action groups. ``"agglomerative"``
-  (the default; :mod:`~hoap_actions.primitives.discovery.state_clustering`) merges the pieces of all
-  demonstrations at once, closest pair first, and numbers everything in a canonical order
-  (:func:`canonical_order`), so its result does not depend on the order. A lift starts every carry whatever its direction,
-  and in relative coordinates the lifts of different directions are a few millimetres apart; so
-  pieces of two motions that head more than 60 degrees apart (:data:`HEADING_COS`) never share a
-  state, as they would not in the paper's absolute object coordinates.
-* **Approach and remove.** Leading and trailing runs of rest states in the decoded strings are the
-  approach and remove primitives. Their effect in O is nil, so relative to where the object rests
-  all of them are the same primitive, whatever the object's location (the paper's Fig. 7 has one
-  approach and one remove); their effect phi is the hand marker's initial and final location.
+The choices the paper leaves open (pose metric, relative pose, rest and motion, symmetric KL,
+one-to-one merging, order-free merging, approach and remove) and why: ``docs/discovery.md``.
 """
 
 from __future__ import annotations
@@ -70,7 +29,6 @@ import hashlib
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -78,93 +36,42 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.hmm import hmm_math
-from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
-from hoap_actions.demonstration.datasets import MAX_COORDINATE_M
+from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.hmm.gaussians import merge_gaussians, symmetric_kl_matrix
-from hoap_actions.primitives.json_files import JsonModelFile, write_json_model
+from hoap_actions.primitives.json_files import JsonModelFile
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
 from hoap_actions.primitives.discovery.state_clustering import cluster_pieces
 from hoap_actions.primitives.discovery.substrings import find_primitives
+from hoap_actions.primitives.discovery.discovery_file import discovery_from_document, write_discovery
+from hoap_actions.primitives.discovery.primitive_classes import (
+    APPROACH,
+    MANIPULATION,
+    OBJECT_DIM,
+    REMOVE,
+    UNKNOWN,
+    N_MARKERS,
+    PrimitiveClass,
+    Segment,
+    effect_track,
+    split_demonstrations,
+    xyz,
+)
+
+__all__ = ["APPROACH", "MANIPULATION", "MERGINGS", "REMOVE", "UNKNOWN", "PrimitiveClass", "PrimitiveDiscovery",
+           "Segment", "canonical_order", "effect_track"]
 
 logger = logging.getLogger(__name__)
 
 FORMAT_VERSION = 2  # 2 added the hyper-parameter merging; version 1 files are the paper's fold
-OBJECT_DIM = 6
-N_MARKERS = 6
-HAND_DIM = 3 * N_MARKERS
 DEFAULT_SPACING = 0.03  # m, tuned on the paper preset (benchmarks/discovery_sweep.py)
 DEFAULT_THRESHOLD = 3.0  # nats, ditto
 REST_FLOOR = 0.1  # fraction of the rest tolerance below which a displacement is creep, not motion
 MERGINGS = ("fold", "agglomerative")
 HEADING_COS = 0.5  # cosine: motions heading more than 60 degrees apart share no state ("agglomerative")
 DECODE_CELLS = 4_000_000  # frames x states decoded per batch: bounds the decoding's memory (~100 MB)
-APPROACH, MANIPULATION, REMOVE = "approach", "manipulation", "remove"
-UNKNOWN = -1  # the class id of frames that start no known primitive
-# Longest object rotation vector accepted (rad): any rotation, from a quaternion of either sign, is
-# within 2 pi; far longer ones are corrupt values on which scipy's rotations break down.
-MAX_ROTATION_ANGLE_RAD = 2.0 * math.pi
-
-
-# ----------------------------------------------------------------------------------- learned values
-
-
-@dataclass(frozen=True)
-class Segment:
-    """One demonstration's frames ``[start, end)`` that perform a primitive, with its effect phi.
-
-    ``initial`` and ``final`` are world-frame 3-D locations (m) at the first and last frame: of the
-    object for manipulation primitives, of the hand marker for approach and remove (or of the object
-    when no hand trajectories were given; ``source`` says which).
-    """
-
-    demo: int
-    start: int
-    end: int
-    initial: tuple[float, float, float]
-    final: tuple[float, float, float]
-    source: str
-
-    @property
-    def phi(self) -> np.ndarray:
-        """The effect phi = (initial, final), shape ``(6,)``, metres."""
-        return np.array(self.initial + self.final)
-
-
-@dataclass(frozen=True)
-class PrimitiveClass:
-    """An equivalence class of arm movements that have the same effect on the object (one primitive)."""
-
-    primitive_id: int
-    kind: str
-    states: tuple[int, ...]
-    segments: tuple[Segment, ...]
-
-    @property
-    def phis(self) -> np.ndarray:
-        """The effect phi of every segment, shape ``(n_segments, 6)``: initial then final location (m)."""
-        return np.array([s.phi for s in self.segments]).reshape(-1, 6)
-
-    def movements(self, H: np.ndarray, lengths: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-        """The class's arm movements as ``(X, lengths)``, one sequence per segment in order, ready for
-        :meth:`ParametricHMM.fit <hoap_actions.primitives.hmm.parametric_hmm.ParametricHMM.fit>` with :attr:`phis`.
-
-        ``H`` and ``lengths`` are the concatenated arm markers ``(N, 18)`` and per-demonstration frame
-        counts given to :meth:`PrimitiveDiscovery.fit` (or any per-frame features of those frames).
-        """
-        H, lengths = hmm_math.validate_sequences(H, lengths)
-        for s in self.segments:
-            if s.demo >= len(lengths) or s.end > lengths[s.demo]:
-                known = f"{lengths[s.demo]} frames" if s.demo < len(lengths) else f"only {len(lengths)} demonstrations"
-                raise InvalidInputError(f"the class has frames [{s.start}, {s.end}) of demonstration {s.demo} but "
-                                        f"lengths gives {known}; give the H and lengths of the demonstrations fit was "
-                                        "given")
-        offsets = np.cumsum(lengths) - lengths
-        pieces = [H[offsets[s.demo] + s.start : offsets[s.demo] + s.end] for s in self.segments]
-        return np.concatenate(pieces), np.array([s.end - s.start for s in self.segments])
-
 
 # ---------------------------------------------------------------------------------------- estimator
 
@@ -291,7 +198,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         with) and remove. A trajectory whose object never moves is one rest: all of it is approach.
         """
         self._check_hyper_parameters()
-        objects, arms = _split_demonstrations(X, lengths, H)
+        objects, arms = split_demonstrations(X, lengths, H)
         prepared = [self._prepare(o) for o in objects]
         order = (canonical_order(objects, [cuts for _, cuts in prepared]) if self.merging == "agglomerative"
                  else list(range(len(objects))))
@@ -329,7 +236,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         """Raw object poses ``X`` ``(N, 6)`` of demonstrations of ``lengths`` frames as :meth:`fit` models
         them: one ``(T_i, 6)`` array per demonstration, relative to its initial rest pose (m, rad)."""
         self._check_hyper_parameters()
-        return [self._prepare(o)[0] for o in _split_demonstrations(X, lengths)[0]]
+        return [self._prepare(o)[0] for o in split_demonstrations(X, lengths)[0]]
 
     def motion_spans(self, X: np.ndarray, lengths: Sequence[int]) -> list[tuple[np.ndarray, int, int]]:
         """Per demonstration of raw object poses ``X`` ``(N, 6)`` and ``lengths``: its trajectory relative
@@ -337,7 +244,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         of the final rest, as :meth:`fit` cuts them (both the length for an object that never moves)."""
         self._check_hyper_parameters()
         spans = []
-        for poses in _split_demonstrations(X, lengths)[0]:
+        for poses in split_demonstrations(X, lengths)[0]:
             relative, cuts = self._prepare(poses)
             moving, resting = (cuts[0][1], cuts[-1][0]) if len(cuts) > 1 else (len(poses), len(poses))
             spans.append((relative, moving, resting))
@@ -600,7 +507,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
             for pid, start, end in segments:
                 track, source = effect_track(self.primitive_kinds_[pid], objects[demo],
                                              None if arms is None else arms[demo][:, marker])
-                members[pid].append(Segment(int(order[demo]), start, end, _xyz(track[start]), _xyz(track[end - 1]),
+                members[pid].append(Segment(int(order[demo]), start, end, xyz(track[start]), xyz(track[end - 1]),
                                             source))
         return [
             PrimitiveClass(pid, kind, states, tuple(segments))
@@ -622,7 +529,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         Frames whose states start no known primitive are labelled ``UNKNOWN`` (-1).
         """
         check_is_fitted(self)
-        objects, _ = _split_demonstrations(X, lengths)
+        objects, _ = split_demonstrations(X, lengths)
         relative, pieces = zip(*(self._prepare(o) for o in objects))
         decoded = self._decode(relative, pieces)
         ids = {kind: self.primitive_kinds_.index(kind) for kind in (APPROACH, REMOVE) if kind in self.primitive_kinds_}
@@ -649,57 +556,12 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
     # -- persistence
 
     def _write(self, path: Path, overwrite: bool) -> None:
-        body = {
-            "params": file_params(self),
-            "joint_means": self.joint_means_.tolist(),
-            "joint_covars": self.joint_covars_.tolist(),
-            "joint_at_rest": self.joint_at_rest_.tolist(),
-            "transmat": self.transmat_.tolist(),
-            "startprob": self.startprob_.tolist(),
-            "state_sequences": [list(s) for s in self.state_sequences_],
-            "primitives": [list(p) for p in self.primitives_],
-            "primitive_kinds": self.primitive_kinds_,
-            "segmentations": [[list(s) for s in seg] for seg in self.segmentations_],
-            "classes": [
-                {
-                    "primitive_id": c.primitive_id,
-                    "kind": c.kind,
-                    "states": list(c.states),
-                    "segments": [
-                        [s.demo, s.start, s.end, list(s.initial), list(s.final), s.source] for s in c.segments
-                    ],
-                }
-                for c in self.classes_
-            ],
-        }
-        write_json_model(path, self._file_kind, self._format_version, body, overwrite)
+        write_discovery(self, path, overwrite)
 
     @classmethod
     def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> PrimitiveDiscovery:
-        try:
-            params = document["params"] if version > 1 else {"merging": "fold", **document["params"]}
-            model = cls(**params)
-            model.joint_means_ = np.array(document["joint_means"], float).reshape(-1, OBJECT_DIM)
-            model.joint_covars_ = np.array(document["joint_covars"], float).reshape(-1, OBJECT_DIM, OBJECT_DIM)
-            model.joint_at_rest_ = np.array(document["joint_at_rest"], bool)
-            model.transmat_ = np.array(document["transmat"], float)
-            model.startprob_ = np.array(document["startprob"], float)
-            model.state_sequences_ = [tuple(s) for s in document["state_sequences"]]
-            model.primitives_ = [tuple(p) for p in document["primitives"]]
-            model.primitive_kinds_ = list(document["primitive_kinds"])
-            model.segmentations_ = [[tuple(s) for s in seg] for seg in document["segmentations"]]
-            model.classes_ = [
-                PrimitiveClass(
-                    c["primitive_id"],
-                    c["kind"],
-                    tuple(c["states"]),
-                    tuple(Segment(d, a, b, _xyz(i), _xyz(f), src) for d, a, b, i, f, src in c["segments"]),
-                )
-                for c in document["classes"]
-            ]
-        except (KeyError, IndexError, TypeError, ValueError) as exc:
-            raise DataFileError(f"{path} is a corrupt PrimitiveDiscovery model file: {exc}") from exc
-        return model
+        return discovery_from_document(cls, path, document, version)
+
 
 
 # -------------------------------------------------------------------------------------- validation
@@ -721,75 +583,3 @@ def canonical_order(objects: Sequence[np.ndarray], pieces: Sequence[list[tuple[i
     digests = [hashlib.sha256(np.ascontiguousarray(o, dtype=np.float64).tobytes()).hexdigest() for o in objects]
     motion = [sum(not at_rest for _, _, at_rest in cuts) for cuts in pieces]
     return sorted(range(len(objects)), key=lambda i: (-motion[i], digests[i]))
-
-
-def effect_track(kind: str, objects: np.ndarray, hand: np.ndarray | None) -> tuple[np.ndarray, str]:
-    """The positions ``(T, 3)`` a primitive's effect phi is read from, and their source: the object's for a
-    manipulation, the hand marker's (``hand``, ``(T, 3)``) for approach and remove, the object's when no
-    hand is given. phi of frames ``[start, end)`` is the track at ``start`` and at ``end - 1``."""
-    if kind != MANIPULATION and hand is not None:
-        return hand, "hand"
-    return objects[:, :3], "object"
-
-
-def _xyz(point: np.ndarray) -> tuple[float, float, float]:
-    """A 3-D location as a tuple of Python floats (hashable, JSON-ready)."""
-    return float(point[0]), float(point[1]), float(point[2])
-
-
-def _split_demonstrations(
-    X: np.ndarray, lengths: Sequence[int], H: np.ndarray | None = None
-) -> tuple[list[np.ndarray], list[np.ndarray] | None]:
-    """Validate concatenated object poses ``X`` ``(N, 6)``, ``lengths`` and optional arm markers ``H``
-    ``(N, 18)``, and split them per demonstration.
-
-    Positions and markers must lie within :data:`MAX_COORDINATE_M` and rotation vectors within
-    :data:`MAX_ROTATION_ANGLE_RAD`, so a corrupt frame is named here, not deep inside scipy.
-    """
-    if isinstance(X, (list, tuple)) and X and all(np.ndim(x) == 2 for x in X):
-        raise InvalidInputError(f"X must be the demonstrations' object poses concatenated, (N, {OBJECT_DIM}), with "
-                                "lengths; got a list of per-demonstration arrays: pass np.concatenate(trajectories) "
-                                "and [len(t) for t in trajectories]")
-    X, lengths = hmm_math.validate_sequences(X, lengths)
-    if X.shape[1] != OBJECT_DIM:
-        raise InvalidInputError(f"X must have {OBJECT_DIM} columns (object position in m, rotation vector in rad); "
-                                f"got shape {X.shape}")
-    _check_bound("X", np.abs(X[:, :3]).max(axis=1), lengths, MAX_COORDINATE_M, "an object coordinate of", "m",
-                 "positions within +-{limit:g} m of the scene origin")
-    with np.errstate(over="ignore"):
-        angle = np.linalg.norm(X[:, 3:], axis=1)
-    _check_bound("X", angle, lengths, MAX_ROTATION_ANGLE_RAD, "a rotation vector of angle", "rad",
-                 "rotation vectors of angle <= {limit:.4g} rad (2 pi)")
-    cuts = np.cumsum(lengths)[:-1]
-    if H is None:
-        return np.split(X, cuts), None
-    try:
-        H = np.asarray(H, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"H must be a numeric array of shape (N, {HAND_DIM}); got {exc}") from exc
-    if H.shape != (len(X), HAND_DIM):
-        raise InvalidInputError(f"H must have shape (N, {HAND_DIM}) = ({len(X)}, {HAND_DIM}), the arm markers "
-                                f"(6 x xyz, m) of every frame of X; got shape {H.shape}")
-    if not np.isfinite(H).all():
-        raise InvalidInputError(f"H contains NaN or inf (first at row {np.argwhere(~np.isfinite(H))[0][0]}); "
-                                "only finite values are accepted")
-    _check_bound("H", np.abs(H).max(axis=1), lengths, MAX_COORDINATE_M, "a marker coordinate of", "m",
-                 "marker positions within +-{limit:g} m of the scene origin")
-    return np.split(X, cuts), np.split(H, cuts)
-
-
-def _check_bound(name: str, size: np.ndarray, lengths: np.ndarray, limit: float, what: str, unit: str,
-                 accepted: str) -> None:
-    """Raise InvalidInputError naming the demonstration, frame and row of the first row of ``name`` whose
-    ``size`` (N,) exceeds ``limit``.
-
-    ``accepted`` says what is accepted, with ``{limit}`` standing for the limit.
-    """
-    rows = np.flatnonzero(size > limit)
-    if len(rows):
-        row = int(rows[0])
-        starts = np.cumsum(lengths) - lengths
-        demo = int(np.searchsorted(starts, row, side="right")) - 1
-        raise InvalidInputError(f"{name} demonstration {demo} frame {row - starts[demo]} (row {row}) has {what} "
-                                f"{size[row]:.3g} {unit} ({len(rows)} such frame(s)); "
-                                f"accepted: {accepted.format(limit=limit)}")

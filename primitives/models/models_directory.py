@@ -18,15 +18,23 @@ and one ``action_<id>.npz`` per action.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from hoap_actions.errors import DataFileError
+from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 from hoap_actions.primitives.json_files import read_json_model
+from hoap_actions.primitives.models.class_models import EFFECT_DIM, ClassModel
 
-__all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array", "names",
-           "positive", "read_manifest"]
+__all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array",
+           "models_from_directory", "names", "positive", "profiles_entry", "read_manifest", "read_models_directory",
+           "unique_profiles", "write_models_directory"]
 
 FORMAT_VERSION = 3
 KIND = "ActionModels"
@@ -71,3 +79,142 @@ def finite_array(path: Path, name: str, value: object, shape: tuple[int, ...]) -
     if array.shape != shape or not np.all(np.isfinite(array)):
         raise DataFileError(f"{path}: entry {name} must be {shape} finite numbers; got shape {array.shape}")
     return array
+
+
+def write_models_directory(models: Any, folder: Path) -> None:
+    """Write fitted action models' files into ``folder``, an empty directory the caller has claimed."""
+    manifest = {
+        "format_version": FORMAT_VERSION,
+        "kind": KIND,
+        "params": models.get_params(),
+        "fps": models.fps_,
+        "marker_names": list(models.marker_names_),
+        "covars_prior": None if models.covars_prior_ is None else models.covars_prior_.tolist(),
+        **({"demonstrators": list(models.demonstrators_)} if models.demonstrators_ else {}),
+        "grasp_offset": None if models.grasp_offset_ is None else models.grasp_offset_.tolist(),
+        "classes": [
+            {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
+             "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
+             "action": models.action_of_class_.get(cid)}
+            for cid, m in models.classes_.items()
+        ],
+        "actions": [
+            {"id": aid, "kind": m.kind, "file": f"action_{aid}.npz", "effect_centre": m.centre.tolist(),
+             "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
+             "lift_m": models.action_lifts_[aid]}
+            for aid, m in models.actions_.items()
+        ],
+    }
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+    models.discovery_.save(folder / "discovery.json")
+    models.grammar_.save(folder / "grammar.json")
+    for cid, model in models.classes_.items():
+        model.phmm.save(folder / f"class_{cid}.npz")
+    for aid, model in models.actions_.items():
+        model.phmm.save(folder / f"action_{aid}.npz")
+
+def read_models_directory(path: Path) -> tuple[object, object, dict]:
+    """The directory's ``kind``, ``format_version`` and manifest (checked further by :func:`models_from_directory`)."""
+    if not path.is_dir():
+        raise DataFileError(f"no models directory at {path}; make one with `hoap-actions learn`")
+    manifest = read_manifest(path / MANIFEST)
+    return manifest.get("kind"), manifest.get("format_version"), manifest
+
+def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -> Any:
+    """The ``cls`` models of the directory ``path``: every file validated, each error naming its file and entry."""
+    directory = path
+    manifest_path = directory / MANIFEST
+    check_manifest(manifest_path, manifest)
+    try:
+        params = dict(manifest["params"])
+        if isinstance(params.get("speed_augmentation"), list):  # JSON has no tuples
+            params["speed_augmentation"] = tuple(params["speed_augmentation"])
+        models = cls(**params)
+        models._check_params()
+    except (TypeError, InvalidInputError) as exc:
+        raise DataFileError(f"{manifest_path}: entry params: {exc}; accepted: {cls._param_names()}") from None
+    models.fps_ = positive(manifest_path, "fps", manifest["fps"])
+    models.marker_names_ = tuple(names(manifest_path, "marker_names", manifest["marker_names"]))
+    width = (2 if models.velocity else 1) * 3 * len(models.marker_names_)
+    prior = manifest["covars_prior"]
+    models.covars_prior_ = None if prior is None else finite_array(manifest_path, "covars_prior", prior, (width,))
+    models.demonstrators_ = profiles_entry(manifest_path, manifest.get("demonstrators", []))
+    offset = manifest.get("grasp_offset") if version >= 3 else None
+    models.grasp_offset_ = None if offset is None else finite_array(manifest_path, "grasp_offset", offset, (3,))
+    models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
+    models.grammar_ = ActionGrammar.load(directory / "grammar.json")
+    classes = {e["id"]: _entry_model(directory, e, "classes", "class", width) for e in _entries(manifest_path, manifest, "classes")}
+    actions = {e["id"]: _entry_model(directory, e, "actions", "action", width)
+               for e in (_entries(manifest_path, manifest, "actions") if version >= 2 else [])}
+    models.actions_ = dict(sorted(actions.items()))
+    models.action_lifts_ = {}
+    for entry in (manifest["actions"] if version >= 2 else []):
+        lift = entry.get("lift_m")
+        if isinstance(lift, bool) or not isinstance(lift, (int, float)) or not np.isfinite(lift):
+            raise DataFileError(f"{manifest_path}: entry actions[{entry['id']}]: lift_m must be a number (m); got {lift!r}")
+        models.action_lifts_[entry["id"]] = float(lift)
+    models.action_of_class_ = {}
+    for entry in (manifest["classes"] if version >= 2 and actions else []):
+        if entry.get("action") not in actions:
+            raise DataFileError(f"{manifest_path}: entry classes[{entry['id']}]: action must be one of the "
+                                f"actions {sorted(actions)}; got {entry.get('action')!r}")
+        models.action_of_class_[entry["id"]] = entry["action"]
+    known = {c.primitive_id for c in models.discovery_.classes_}
+    if set(classes) != known or set(models.grammar_.symbols_) - set(classes):
+        raise DataFileError(
+            f"{manifest_path}: classes {sorted(classes)} do not match the discovery's {sorted(known)} "
+            "or the grammar's symbols"
+        )
+    models.classes_ = dict(sorted(classes.items()))
+    return models
+
+def _entries(manifest_path: Path, manifest: dict, key: str) -> list[dict]:
+    """The manifest's list ``key`` of models, each an object with an int id and its file ``<prefix>_<id>.npz``."""
+    prefix = {"classes": "class", "actions": "action"}[key]
+    entries = manifest.get(key)
+    if not isinstance(entries, list):
+        raise DataFileError(f"{manifest_path}: entry {key} must be a list of models")
+    for entry in entries:
+        if not isinstance(entry, dict) or not isinstance(entry.get("id"), int) or entry.get("file") != f"{prefix}_{entry.get('id')}.npz":
+            raise DataFileError(f"{manifest_path}: entry {key}[{entry.get('id') if isinstance(entry, dict) else entry!r}] "
+                                f"must hold an int id and its file {prefix}_<id>.npz")
+    return entries
+
+
+def _entry_model(directory: Path, entry: dict, key: str, prefix: str, width: int) -> ClassModel:
+    """One model of the manifest, its numbers checked and its PHMM loaded and matched against them."""
+    manifest_path = directory / MANIFEST
+    where = f"{manifest_path}: entry {key}[{entry['id']}]"
+    centre = finite_array(manifest_path, f"{key}[{entry['id']}].effect_centre", entry.get("effect_centre"), (EFFECT_DIM,))
+    basis = np.asarray(entry.get("effect_basis"), dtype=float)
+    if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
+        raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")
+    phmm = ParametricHMM.load(directory / entry["file"])
+    if phmm.mean_bar_.shape[1] != width or phmm.W_.shape[2] != basis.shape[1]:
+        raise DataFileError(
+            f"{directory / entry['file']}: the model has {phmm.mean_bar_.shape[1]} features and "
+            f"{phmm.W_.shape[2]} effect directions; the manifest says {width} and {basis.shape[1]}"
+        )
+    leave = entry.get("exit_probability")
+    if isinstance(leave, bool) or not isinstance(leave, (int, float)) or not 0.0 < leave <= 1.0:
+        raise DataFileError(f"{where}: exit_probability must be a probability in (0, 1]; got {leave!r}")
+    return ClassModel(entry["id"], str(entry["kind"]), phmm, centre, basis, float(leave))
+
+
+def unique_profiles(profiles: Sequence[Mapping]) -> tuple[dict, ...]:
+    """Distinct demonstrator profiles in first-seen order, as JSON-ready dicts."""
+    unique: list[dict] = []
+    for profile in profiles:
+        if not isinstance(profile, Mapping) or "name" not in profile:
+            raise InvalidInputError(f"a demonstrator is a profile mapping with a name; got {profile!r}")
+        if dict(profile) not in unique:
+            unique.append(dict(profile))
+    return tuple(unique)
+
+
+def profiles_entry(manifest_path: Path, value: object) -> tuple[dict, ...]:
+    """The manifest's optional ``demonstrators`` entry (absent in models learned before it existed)."""
+    try:
+        return unique_profiles(value) if isinstance(value, list) else unique_profiles([value])
+    except InvalidInputError as exc:
+        raise DataFileError(f"{manifest_path}: entry demonstrators: {exc}; accepted: a list of profiles") from None

@@ -1,0 +1,93 @@
+"""Pinhole cameras fixed in the world and the images they give: view and projection matrices (OpenGL
+convention), world points to pixels, and the image sizes the renderer accepts."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hoap_actions.errors import InvalidInputError
+
+__all__ = ["MAX_IMAGE_SIDE", "Camera", "CameraImage", "check_image_size"]
+
+MAX_IMAGE_SIDE = 4096  # px, largest camera width or height: TinyRenderer allocates the whole frame up front
+
+
+def check_image_size(width: object, height: object, what: str = "camera") -> None:
+    """Image sides must be whole pixels in 1..:data:`MAX_IMAGE_SIDE` (PyBullet aborts the process on
+    negative sizes and runs out of memory on huge ones)."""
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_IMAGE_SIDE:
+            raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got {value!r}")
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera fixed in the world: eye and target points (m), vertical field of view (deg)."""
+
+    eye: tuple[float, float, float]
+    target: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    fov_deg: float = 60.0
+    near: float = 0.02
+    far: float = 3.0
+    width: int = 320
+    height: int = 240
+
+    def __post_init__(self) -> None:
+        check_image_size(self.width, self.height)
+        eye, target, up = (np.asarray(v, float) for v in (self.eye, self.target, self.up))
+        if any(v.shape != (3,) or not np.all(np.isfinite(v)) for v in (eye, target, up)):
+            raise InvalidInputError("camera eye, target and up must be finite 3-vectors (m)")
+        if np.linalg.norm(target - eye) < 1e-9 or np.linalg.norm(np.cross(target - eye, up)) < 1e-9:
+            raise InvalidInputError("camera eye and target must differ, and up must not be parallel to the view direction")
+        if not 0.0 < self.fov_deg < 180.0:
+            raise InvalidInputError(f"camera fov_deg must be in (0, 180) degrees; got {self.fov_deg!r}")
+        if not 0.0 < self.near < self.far < np.inf:
+            raise InvalidInputError(f"camera needs 0 < near < far (m); got near={self.near!r}, far={self.far!r}")
+
+    def view_matrix(self) -> np.ndarray:
+        """4x4 world-to-camera matrix (OpenGL convention, camera looks down its -z)."""
+        eye, target, up = (np.asarray(v, float) for v in (self.eye, self.target, self.up))
+        forward = target - eye
+        forward /= np.linalg.norm(forward)
+        side = np.cross(forward, up)
+        side /= np.linalg.norm(side)
+        true_up = np.cross(side, forward)
+        view = np.eye(4)
+        view[0, :3], view[1, :3], view[2, :3] = side, true_up, -forward
+        view[:3, 3] = -view[:3, :3] @ eye
+        return view
+
+    def projection_matrix(self) -> np.ndarray:
+        """4x4 OpenGL perspective projection for this camera's aspect ratio."""
+        aspect = self.width / self.height
+        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2.0)
+        n, fa = self.near, self.far
+        return np.array(
+            [
+                [f / aspect, 0.0, 0.0, 0.0],
+                [0.0, f, 0.0, 0.0],
+                [0.0, 0.0, (fa + n) / (n - fa), 2.0 * fa * n / (n - fa)],
+                [0.0, 0.0, -1.0, 0.0],
+            ]
+        )
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Pixel coordinates (u right, v down) of world points ``(N, 3)``; returns ``(N, 2)``."""
+        pts = np.atleast_2d(np.asarray(points, float))
+        homogeneous = np.c_[pts, np.ones(len(pts))] @ (self.projection_matrix() @ self.view_matrix()).T
+        ndc = homogeneous[:, :2] / homogeneous[:, 3:4]
+        u = (ndc[:, 0] + 1.0) * 0.5 * self.width
+        v = (1.0 - ndc[:, 1]) * 0.5 * self.height
+        return np.c_[u, v]
+
+
+@dataclass(frozen=True)
+class CameraImage:
+    """One rendered view: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres, ``segmentation`` (H, W) body ids."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    segmentation: np.ndarray

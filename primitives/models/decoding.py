@@ -1,0 +1,188 @@
+"""Recognition and decoding with fitted action models: a movement's class and effect, the pieces of a
+demonstration decoded through the grammar, and a whole movement cut by connected recognition, each
+helped by discovery's parse of the object trajectory estimated from the hand."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.base import check_is_fitted
+from hoap_actions.primitives.discovery.estimator import MANIPULATION, UNKNOWN
+from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.models.class_models import EFFECT_DIM, DecodedSegment, SegmentRecognition, marker_features
+from hoap_actions.primitives.models.connected_recognition import ChainedHMM, chain_classes
+from hoap_actions.primitives.models.effect_continuity import effect_gap_scores
+from hoap_actions.primitives.models.object_estimate import object_poses
+
+__all__ = ["ActionDecoding"]
+
+
+class ActionDecoding:
+    """The recognition half of :class:`~hoap_actions.primitives.models.action_models.ActionModels`: it reads
+    the fitted ``classes_``, ``grammar_``, ``discovery_``, ``fps_``, ``marker_names_`` and
+    ``grasp_offset_``, and the decoding hyper-parameters."""
+
+    def features(self, H: np.ndarray) -> np.ndarray:
+        """The model input of one movement's markers ``(T, M, 3)`` or ``(T, 3M)``, checked against the models."""
+        check_is_fitted(self)
+        H = np.asarray(H, dtype=float)
+        markers = len(self.marker_names_)
+        if H.ndim not in (2, 3) or H.reshape(len(H), -1).shape[1] != 3 * markers or len(H) < 1:
+            raise InvalidInputError(
+                f"a movement must be (T, {markers}, 3) or (T, {3 * markers}) marker positions "
+                f"({', '.join(self.marker_names_)}); got shape {H.shape}"
+            )
+        if not np.all(np.isfinite(H)):
+            raise InvalidInputError("a movement's markers must be finite (no NaN or inf); bridge occlusion gaps first "
+                                    "with hoap_actions.primitives.pipelines.mocap_cleaning.fill_gaps (learn and recognize do)")
+        return marker_features(H, self.fps_, self.velocity)
+
+    def recognize(self, H: np.ndarray) -> SegmentRecognition:
+        """The class of one movement ``H`` (its markers), its phi (6,), and every class's log-likelihood.
+
+        The class is the one whose chain, over its training effects, explains the displacements best:
+        the evidence connected recognition (:meth:`decode`) reads, so a piece cut from a demonstration
+        is classified as the decoder would classify it between those cuts. Phi is then estimated with
+        the PHMMs of the ``n_candidates`` best classes (the others get none).
+        """
+        return self._recognize_features(self.features(H))
+
+    def _recognize_features(self, X: np.ndarray) -> SegmentRecognition:
+        chained = self.chained()
+        marginal = chained.class_scores(self.connected_log_emissions(X))
+        scores = {int(c): float(v) for c, v in zip(chained.class_ids, marginal)}
+        best = [int(chained.class_ids[i]) for i in np.argsort(-marginal, kind="stable")[: self.n_candidates]
+                if np.isfinite(marginal[i])]
+        if not best:  # shorter than every chain: no class explains it
+            return SegmentRecognition(-1, np.full(EFFECT_DIM, np.nan), scores, {})
+        phis = {c: self.classes_[c].full_phi(self.classes_[c].phmm.estimate_phi(X, n_restarts=self.n_restarts))
+                for c in best}
+        return SegmentRecognition(best[0], phis[best[0]], scores, phis)
+
+    def decode_segments(self, segments: Sequence[np.ndarray]) -> list[SegmentRecognition]:
+        """Recognise the consecutive pieces of one demonstration together, through the grammar.
+
+        Each piece is recognised on its own, then the grammar picks the class sequence that best
+        explains all of them (with the unexplained penalty and effect continuity); then, with
+        ``object_vote``, the class discovery gives each piece of the object trajectory estimated from
+        the hand adds to that class's score and the grammar decodes again (module docstring). Each
+        returned recognition carries the decoded class and that class's phi. A piece no class
+        explains, or a demonstration the strict grammar cannot parse, keeps its isolated class.
+        """
+        if isinstance(segments, np.ndarray) or not len(segments):
+            raise InvalidInputError("segments must be a non-empty list of movements, one (T, M, 3) array per piece")
+        recognitions = [self.recognize(piece) for piece in segments]
+        decoded = self._decode(recognitions)
+        votes = self.object_votes(segments, [r.class_id for r in decoded])
+        return decoded if votes is None else self._decode(recognitions, votes)
+
+    def object_votes(self, segments: Sequence[np.ndarray], class_ids: Sequence[int]) -> list[int] | None:
+        """Each consecutive piece's class (its frames' majority) in :meth:`object_parse` of the pieces'
+        markers, the manipulation being the pieces from the first to the last of ``class_ids`` that is a
+        manipulation class; -1 where the parse knows no class; ``None`` when :meth:`object_parse` gives none."""
+        lengths = [len(piece) for piece in segments]
+        H = np.concatenate([np.asarray(piece, dtype=float).reshape(len(piece), -1) for piece in segments])
+        labels = self.object_parse(H, np.repeat(np.asarray(class_ids, dtype=int), lengths))
+        if labels is None:
+            return None
+        bounds = np.cumsum([0] + lengths)
+        return [int(np.bincount(labels[a:b] - UNKNOWN).argmax()) + UNKNOWN for a, b in zip(bounds[:-1], bounds[1:])]
+
+    def object_parse(self, H: np.ndarray, frame_classes: np.ndarray) -> np.ndarray | None:
+        """Discovery's class of every frame (``UNKNOWN`` where it knows none) in its parse of the object
+        trajectory estimated from the markers ``H`` ``(T, M, 3)`` or ``(T, 3M)``
+        (:mod:`~hoap_actions.primitives.models.object_estimate`), the hand moving the object from the first to
+        the last frame that ``frame_classes`` ``(T,)`` gives a manipulation class. ``None`` when the
+        models cannot vote (``object_vote`` 0, no grasp offset) or no frame is a manipulation."""
+        check_is_fitted(self)
+        if self.object_vote == 0 or self.grasp_offset_ is None:
+            return None
+        manipulations = {c for c, m in self.classes_.items() if m.kind == MANIPULATION}
+        moving = np.flatnonzero(np.isin(frame_classes, list(manipulations)))
+        if not moving.size:
+            return None
+        H = np.asarray(H, dtype=float).reshape(len(H), len(self.marker_names_), 3)
+        poses = object_poses(H, self.marker_names_, int(moving[0]), int(moving[-1]) + 1, self.grasp_offset_)
+        return self.discovery_.predict(poses, [len(poses)])[0]
+
+    def _decode(self, recognitions: list[SegmentRecognition], votes: Sequence[int] | None = None
+                ) -> list[SegmentRecognition]:
+        scores = [r.log_likelihoods if r.class_id >= 0 else dict.fromkeys(self.classes_, 0.0) for r in recognitions]
+        # after the unexplained penalty: a piece shorter than the voted class's chain (a brisker
+        # demonstrator than the training ones) still gets the vote
+        bonus = None if votes is None else [{vote: self.object_vote} if vote in self.classes_ else {} for vote in votes]
+        pairs = None
+        if self.continuity_weight > 0 and len(recognitions) > 1:
+            pieces = {cid for cid, m in self.classes_.items() if m.kind == MANIPULATION}
+
+            def where(rec: SegmentRecognition, part: slice) -> dict:
+                return {c: phi[part] for c, phi in rec.phis.items() if c in pieces}
+
+            pairs = [effect_gap_scores(where(a, slice(3, 6)), where(b, slice(0, 3)), float(self.continuity_weight))
+                     for a, b in zip(recognitions, recognitions[1:])]
+        try:
+            labels, _ = self.grammar_.decode(scores, self.unexplained_penalty, pairs, bonus)
+        except InvalidInputError:  # the strict grammar cannot parse these pieces: keep the isolated classes
+            return recognitions
+        return [
+            SegmentRecognition(int(label), rec.phis.get(int(label), np.full(EFFECT_DIM, np.nan)),
+                               rec.log_likelihoods, rec.phis)
+            for label, rec in zip(labels, recognitions)
+        ]
+
+    def decode(self, H: np.ndarray) -> list[DecodedSegment]:
+        """Cut a whole movement (its markers alone) into primitives and recognise each, with its phi.
+
+        Connected recognition (:mod:`~hoap_actions.primitives.models.connected_recognition`): the classes'
+        chains joined by the grammar, Viterbi over every frame, then again with each frame's class in
+        :meth:`object_parse` ``object_vote`` nats the likelier; then each segment's phi estimated with
+        its class's PHMM. A movement no grammatical path explains gives an empty list.
+        """
+        X = self.features(H)
+        return self.decode_features(X, self.connected_log_emissions(X))
+
+    def connected_log_emissions(self, X: np.ndarray) -> np.ndarray:
+        """Log-density of every frame of the features ``X`` (:meth:`features`) under every state of the
+        chained classes, ``(T, S)``: connected recognition's evidence."""
+        return self.chained().log_emissions(X[:, self.connected_features()])
+
+    def decode_features(self, X: np.ndarray, log_emissions: np.ndarray) -> list[DecodedSegment]:
+        """:meth:`decode` from a movement's features and their :meth:`connected_log_emissions`, for a
+        caller that uses the emissions too (the recognition report's baseline)."""
+        chained = self.chained()
+        labels, score = chained.viterbi(log_emissions)
+        if not np.isfinite(score):
+            return []
+        ids = chained.class_ids
+        parse = self.object_parse(X[:, : 3 * len(self.marker_names_)], ids[labels])
+        if parse is not None:  # each frame's class in the parse gets object_vote nats, and Viterbi runs again
+            parsed = np.searchsorted(ids, parse).clip(0, len(ids) - 1)  # ids are sorted
+            voted = (ids[parsed] == parse)[:, None] & (chained.state_class[None, :] == parsed[:, None])
+            relabelled, score = chained.viterbi(log_emissions + self.object_vote * voted)
+            labels = relabelled if np.isfinite(score) else labels
+        decoded = []
+        for index, start, end in runs(labels):
+            model = self.classes_[int(ids[index])]
+            phi = (model.full_phi(model.phmm.estimate_phi(X[start:end], n_restarts=self.n_restarts))
+                   if end - start >= model.phmm.min_frames else np.full(EFFECT_DIM, np.nan))
+            decoded.append(DecodedSegment(model.class_id, int(start), int(end), phi))
+        return decoded
+
+    def chained(self) -> ChainedHMM:
+        """The classes' chains joined by the grammar, over the training effects (built once)."""
+        check_is_fitted(self)
+        if getattr(self, "_chained", None) is None:
+            ids = list(self.classes_)
+            self._chained = chain_classes([self.classes_[c].phmm for c in ids], ids,
+                                          [self.classes_[c].exit_probability for c in ids], self.grammar_,
+                                          self.connected_features(), self.stay_weight)
+        return self._chained
+
+    def connected_features(self) -> np.ndarray:
+        """Indices of the features connected recognition reads: the displacements when the models have
+        them (module docstring), else the positions."""
+        positions = 3 * len(self.marker_names_)
+        return np.arange(positions, 2 * positions) if self.velocity else np.arange(positions)
