@@ -22,10 +22,10 @@ from typing import NoReturn
 import numpy as np
 
 from hoap_actions import ENV_IDS, __version__
+from hoap_actions.apps.episodes import compare_policies, film_episode, summarise
 from hoap_actions.demonstration.bodies import DEMONSTRATORS
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.scene import CAMERAS
-from hoap_actions.apps.episodes import compare_policies, film_episode, summarise
 from hoap_actions.errors import HoapActionsError, InvalidInputError
 from hoap_actions.outputs import claimed_file
 from hoap_actions.parallel import LOCAL_RAY, check_ray_address
@@ -94,7 +94,8 @@ def _ray_address(text: str) -> str:
 
 def _robot_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
-                        help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs welded "
+                        help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs "
+                             "welded "
                              "(it cannot fall, and it simulates about 3x faster)")
 
 
@@ -118,7 +119,8 @@ def _demo(args: argparse.Namespace) -> int:
         from hoap_actions.primitives.models.action_models import ActionModels
 
         ActionModels.load(args.models)
-    kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {}) for name in names}
+    kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {})
+              for name in names}
     check_seed(args.seed, count=args.episodes)
     last_seed = args.seed + args.episodes - 1
     if args.film >= args.episodes:
@@ -133,8 +135,8 @@ def _demo(args: argparse.Namespace) -> int:
                                    ray_address=args.ray)
         if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the chosen one again, filmed
             film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed + args.film,
-                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"], camera=args.camera,
-                         robot=args.robot)
+                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"],
+                         camera=args.camera, robot=args.robot)
         summaries = {name: summarise(episodes) for name, episodes in results.items()}
         if claim["report"]:  # without wall times: the same file whatever --workers
             report = {"env": args.env, "robot": args.robot, "seeds": [args.seed, last_seed],
@@ -142,15 +144,18 @@ def _demo(args: argparse.Namespace) -> int:
             claim["report"].write_text(json.dumps(report, indent=2) + "\n")
     for name, summary in summaries.items():
         low, high = summary["success_ci95"]
-        print(f"{name} policy on {args.env} ({args.robot} robot): success rate {summary['success_rate']:.1%} (95 % interval {low:.0%}-{high:.0%}) "
+        print(f"{name} policy on {args.env} ({args.robot} robot): success rate {summary['success_rate']:.1%} (95 % "
+              f"interval {low:.0%}-{high:.0%}) "
               f"over {args.episodes} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}, "
               f"mean episode {summary['mean_wall_s']:.1f} s")
         for reason, count in summary["reasons"].items():
             print(f"  {reason}: {count}")
         if "perception_error_m" in summary and summary["perception_error_m"]["max"] is not None:
-            print(f"  largest perception error of a target peg or hole: {1000 * summary['perception_error_m']['max']:.2f} mm")
+            print(f"  largest perception error of a target peg or hole: "
+                  f"{1000 * summary['perception_error_m']['max']:.2f} mm")
     if args.video:
-        print(f"video of episode {args.film} ({names[0]}, seed {args.seed + args.film}, camera {args.camera}): {args.video}")
+        print(f"video of episode {args.film} ({names[0]}, seed {args.seed + args.film}, camera {args.camera}): "
+              f"{args.video}")
     if args.snapshot:
         print(f"picture of episode {args.film} ({names[0]}, seed {args.seed + args.film}): {args.snapshot}")
     if args.json:
@@ -217,9 +222,9 @@ def _learn(args: argparse.Namespace) -> int:
 
 
 def _recognize(args: argparse.Namespace) -> int:
+    from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.models.shipped import load_default_models
     from hoap_actions.primitives.models.action_models import ActionModels
-    from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.primitives.pipelines.recognize import recognize_recording
 
     with contextlib.ExitStack() as outputs:
@@ -244,12 +249,17 @@ def _recognize(args: argparse.Namespace) -> int:
 
 
 def _track(args: argparse.Namespace) -> int:
+    from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.models.shipped import load_default_models
     from hoap_actions.primitives.models.action_models import ActionModels
-    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.tracking import (
+        effect_figure,
+        side_cameras,
+        track_episode,
+        track_markers_episode,
+        tracking_video_frames,
+    )
     from hoap_actions.vision.body_model import BodyModel
-    from hoap_actions.tracking import (effect_figure, side_cameras, track_episode, track_markers_episode,
-                                       tracking_video_frames)
 
     if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise):
         raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
@@ -281,7 +291,8 @@ def _track(args: argparse.Namespace) -> int:
             effect_figure(result, claimed["figure"], demos.fps)
     rms = summary["rms_m"]
     phi = summary["phi_error_m"]
-    print(f"episode {args.episode}, {summary['frames']} frames at {summary['hz']:.0f} Hz with {args.particles} particles: "
+    print(f"episode {args.episode}, {summary['frames']} frames at {summary['hz']:.0f} Hz with {args.particles} "
+          "particles: "
           f"RMS shoulder {100 * rms['shoulder']:.1f}, elbow {100 * rms['elbow']:.1f}, finger "
           f"{100 * rms['index_tip']:.1f} cm; approach end {'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
           + ("no frame has a known class" if summary["frame_accuracy"] is None else
@@ -304,7 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="run a policy for N episodes and report its success rate")
     demo.add_argument("--policy", nargs="+", default=["random"], choices=["random", "scripted", "phmm", "straight"],
                       help="random: any env, joint_delta; scripted: the grasp-and-insert expert (true poses, straight "
-                           "paths); phmm: grasp-and-insert from the overhead camera with paths synthesised by the learned "
+                           "paths); phmm: grasp-and-insert from the overhead camera with paths synthesised by the "
+                           "learned "
                            "models (both PegInsert-v0, ee_delta); straight: the hand driven straight at the target "
                            "(Reach-v1, ee_delta). Several run side by side on the same layouts (default: random)")
     demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
@@ -317,15 +329,18 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--video", type=_path, help="write an mp4 of one of the first policy's episodes here (--film)")
     demo.add_argument("--film", type=_nonnegative_int, default=0, metavar="K",
                       help="which episode --video and --snapshot show: K for seed S+K (default: 0, the first)")
-    demo.add_argument("--camera", default="closeup", choices=sorted(CAMERAS), help="the video's camera (default: %(default)s)")
+    demo.add_argument("--camera", default="closeup", choices=sorted(CAMERAS), help="the video's camera (default: "
+                                                                                   "%(default)s)")
     demo.add_argument("--snapshot", type=_path, help="write a PNG of the first episode here: for the phmm policy the "
-                                                      "overhead image with what it located and the paths it synthesised")
+                                                      "overhead image with what it located and the paths it "
+                                                      "synthesised")
     demo.add_argument("--json", type=_path, help="write per-episode results here (the same file whatever --workers; "
                                                   "wall times are printed, not written)")
     demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
     demo.set_defaults(func=_demo)
 
-    col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, imitation)")
+    col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, "
+                                         "imitation)")
     col.add_argument("--policy", required=True, choices=["random", "scripted", "phmm", "straight"],
                      help="as for demo: random (any env), scripted and phmm (PegInsert-v0), straight (Reach-v1)")
     col.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
@@ -350,14 +365,17 @@ def build_parser() -> argparse.ArgumentParser:
                           "5 mm off the joint centres, an occlusion gap every 5 s per marker), or magnitudes such as "
                           "marker=1,object=1,angle=1,gaps=0.2,skin=5 (mm, mm, deg, gaps per marker per s, mm)")
     rec.add_argument("--demonstrator", default="reference", choices=[*DEMONSTRATORS, "random"],
-                     help="who demonstrates: reference (the default: the 1.75 m demonstrator the shipped models learned "
-                          "from), short (1.60 m, leans in, elbow tucked), tall (1.88 m, brisk, elbow out), relaxed (slow, "
+                     help="who demonstrates: reference (the default: the 1.75 m demonstrator the shipped models "
+                          "learned "
+                          "from), short (1.60 m, leans in, elbow tucked), tall (1.88 m, brisk, elbow out), relaxed "
+                          "(slow, "
                           "more trunk), or random (body and way of moving drawn from --seed)")
     rec.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
     rec.set_defaults(func=_record)
 
     disc = sub.add_parser("discover", help="discover action primitives in recorded demonstrations (paper's method)")
-    disc.add_argument("--demos", type=_path, required=True, help="demonstrations dataset (.h5, from the record command)")
+    disc.add_argument("--demos", type=_path, required=True, help="demonstrations dataset (.h5, from the record "
+                                                                 "command)")
     disc.add_argument("--out", type=_path, required=True, help="directory for the model, classes, grammar, figures")
     disc.add_argument("--threshold", type=float, help="state-merge threshold, nats (default: the tuned one)")
     disc.add_argument("--spacing", type=float, help="arc length per Gaussian, m (default: the tuned one)")
@@ -400,7 +418,8 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--figure", type=_path, help="write Fig. 11 (the estimated effect over time) as a PNG")
     track.add_argument("--clutter", action="store_true", help="put unrelated objects on the table in the images")
     track.add_argument("--side-camera", action="store_true",
-                       help="score a second view from the demonstrator's right as well (eq. 9; about half the frame rate)")
+                       help="score a second view from the demonstrator's right as well (eq. 9; about half the frame "
+                            "rate)")
     track.add_argument("--edges-only", action="store_true",
                        help="score poses on the edge image alone (the paper's eq. 8), without the silhouette that "
                             "background subtraction against the empty table gives (the default uses both)")

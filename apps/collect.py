@@ -22,8 +22,8 @@ from typing import Any
 import gymnasium
 
 import hoap_actions  # noqa: F401  (registers the environments)
-from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.apps.episodes import run_episode
+from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_directory
 from hoap_actions.seeds import check_seed

@@ -18,10 +18,8 @@ logger = logging.getLogger(__name__)
 
 def demonstrator_sources() -> list[Path]:
     """The files that decide what a recording contains."""
+    from hoap_actions.demonstration import datasets, demonstrator, recording
     from hoap_actions.demonstration import scene as demo_scene
-    from hoap_actions.demonstration import demonstrator
-    from hoap_actions.demonstration import recording
-    from hoap_actions.demonstration import datasets
 
     return [Path(m.__file__) for m in (demonstrator, recording, demo_scene, datasets)]
 

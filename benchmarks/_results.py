@@ -1,8 +1,8 @@
 """What every benchmark shares: where its figures go (a JSON file under ``benchmarks/results/``), the
 options every script takes (``--output``, and ``--data`` / ``--threads`` where it needs them), the
 software and machine they were measured with, the recordings it needs (under ``data/``, made on
-demand) and how a figure's spread over several recordings is reported. The history of what was
-tried, and earlier figures, are in ``results/NOTES.md``."""
+demand) and how a figure's spread over several recordings is reported. What each benchmark
+measures, its current figures and their history: ``docs/experiments/``."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ import platform
 import sys
 import warnings
 from pathlib import Path
-
 
 RESULTS = Path(__file__).resolve().parent / "results"
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -92,7 +91,7 @@ def numeric_environment(blas_threads: int | None, **versions: str) -> dict:
 
     return {"blas_threads": blas_threads, "cpu_count": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
             "platform": platform.platform(), "python": sys.version.split()[0], "numpy": np.__version__,
-            **versions, "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+            **versions, "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
 
 
 def write_json(path: Path, document: dict) -> None:

@@ -10,7 +10,7 @@ Measures, on the standing robot in PegInsert-v0 (control_mode="ee_delta"):
 
     python benchmarks/control_tick.py [--episodes 10] [--seed 1000]
 
-Prints a table and writes ``results/control_tick.json``; earlier figures are in ``results/NOTES.md``.
+Prints a table and writes ``results/control_tick.json``; earlier figures are in ``docs/experiments/robot.md``.
 """
 
 from __future__ import annotations
@@ -25,13 +25,13 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the environments)
-from hoap_actions.policies.scripted_expert import ScriptedExpert
+from hoap_actions.apps.episodes import run_episode
 from hoap_actions.envs.hoap_env import PHYSICS_STEPS_PER_ACTION
 from hoap_actions.envs.sim import TIMESTEP
-from hoap_actions.apps.episodes import run_episode
+from hoap_actions.policies.scripted_expert import ScriptedExpert
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json
 
 
 def _moving_target(start: np.ndarray, k: int) -> np.ndarray:

@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json
 
 FIGURES = ("frame_accuracy", "segment_accuracy", "edit_score", "oracle_cut_accuracy", "phi_error_median_m",
            "oracle_cut_phi_error_median_m")

@@ -2,12 +2,14 @@
 
 For every demonstrator (``--demonstrators``, names of :data:`hoap_actions.demonstration.bodies.DEMONSTRATORS`
 or ``random``, drawn from the seed), each ``approach-grid`` recording (``--seeds``) gives, at each of the
-35 test locations, 4 repetitions of the same reach; :func:`~hoap_actions.primitives.evaluation.grid_synthesis.repetition_spread`
-measures each repetition against the average of the other three, per marker; the mean and 95 % interval
-over the recordings are reported. People vary at least as much in the trunk and elbow as in the hand; a
-tightly scripted arm varies least at the shoulder.
+35 test locations, 4 repetitions of the same reach;
+:func:`~hoap_actions.primitives.evaluation.grid_synthesis.repetition_spread` measures each repetition
+against the average of the other three, per marker; the mean and 95 % interval over the recordings are
+reported. People vary at least as much in the trunk and elbow as in the hand; a tightly scripted arm
+varies least at the shoulder.
 
-    python benchmarks/demonstrator_variability.py [--demonstrators reference short tall relaxed random] [--seeds 0 1 2 3 4]
+    python benchmarks/demonstrator_variability.py [--demonstrators reference short tall relaxed random]
+        [--seeds 0 1 2 3 4]
 
 Recordings are looked for in (and made in) ``--data``. Writes ``results/demonstrator_variability.json``.
 """
@@ -19,7 +21,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:

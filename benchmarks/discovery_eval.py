@@ -11,7 +11,7 @@ speeds and paths) checking that the tuned parameters are not specific to one.
 
 Recordings are looked for in ``--data`` (``data/`` under the checkout) as ``paper-s<seed>.h5`` and
 recorded there when missing (about 2 minutes each). Writes ``results/discovery_eval.json``; earlier
-figures are in ``results/NOTES.md``.
+figures are in ``docs/experiments/discovery.md``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json
 
 HEADLINE = ("labels_version", "n_action_groups", "n_true_actions", "n_true_phases", "phases_missed", "frame_accuracy",
             "edit_score", "boundary_f1", "fit_seconds", "params")
@@ -43,9 +43,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def evaluate(path: Path, spacing: float | None, threshold: float | None) -> dict:
     """Fit on one dataset, time it and evaluate it."""
-    from hoap_actions.demonstration.datasets import load_demonstrations
     import numpy as np
 
+    from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
     from hoap_actions.primitives.evaluation.discovery import evaluate_discovery
 

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json
 
 DEFAULT_NOISE = "marker=1,skin=5,gaps=0.2,object=1,angle=1"
 
@@ -94,8 +94,8 @@ def order_figures(demos, mergings: list[str], shuffles: int) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.demonstration.mocap import parse_noise
     from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.demonstration.mocap import parse_noise
     from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
     parse_noise(args.noise)  # a bad model fails before any recording

@@ -14,7 +14,7 @@ same joint HMM.
 BLAS threads default to 1 (set before numpy loads): on a shared 2-core machine multithreaded BLAS
 on these small products is slower and erratic. The recording is ``paper-s<seed>.h5`` in ``--data``
 (``data/`` under the checkout), recorded there when missing. Writes ``results/discovery_speed.json``;
-earlier figures are in ``results/NOTES.md``.
+earlier figures are in ``docs/experiments/speed.md``.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, use_blas_threads, write_json  # noqa: E402
+from _results import arguments, numeric_environment, use_blas_threads, write_json
 
 GOAL_SECONDS = 30.0  # the paper preset on 2 cores
 POSITION_NOISE = 2e-4  # m

@@ -14,7 +14,7 @@ boundary F1, not mixed actions.
 
 Recordings are looked for in ``--data`` (``data/`` under the checkout) as ``paper-s<seed>.h5`` and
 recorded there when missing. Writes every number to ``results/discovery_sweep.json`` and the heat
-maps beside it (``discovery_sweep.png``); earlier figures are in ``results/NOTES.md``.
+maps beside it (``discovery_sweep.png``); earlier figures are in ``docs/experiments/discovery.md``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json
 
 SPACINGS = (0.02, 0.025, 0.03, 0.04)
 THRESHOLDS = (1.0, 2.0, 3.0, 5.0)

@@ -10,7 +10,7 @@ is printed. Both robot models are timed: ``full`` (free-standing) and ``fixed_le
 
     python benchmarks/env_speed.py [--runs 5] [--steps 300] [--peers-only] [--robots full fixed_legs]
 
-Printed and written to ``results/env_speed.json``; earlier figures are in ``results/NOTES.md``.
+Printed and written to ``results/env_speed.json``; earlier figures are in ``docs/experiments/speed.md``.
 """
 
 from __future__ import annotations
@@ -29,8 +29,7 @@ from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.sim import TIMESTEP
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
-
+from _results import arguments, numeric_environment, write_json
 
 PEERS = {"hoap_actions/PegInsert-v0": "PandaPickAndPlace-v3", "hoap_actions/Reach-v1": "PandaReach-v3"}
 
@@ -129,7 +128,8 @@ def main(argv: list[str] | None = None) -> dict:
         }
         rows.append(row)
         print(
-            f"{env_id:28s} {robot:10s} {actions_kind:6s} render={str(render):5s}  {row['median_steps_per_s']:8.1f} steps/s  "
+            f"{env_id:28s} {robot:10s} {actions_kind:6s} render={str(render):5s}  {row['median_steps_per_s']:8.1f} "
+            "steps/s  "
             f"{row['median_sim_s_per_wall_s']:6.2f} sim s / wall s  "
             f"({row['median_physics_step_ms']:.3f} ms per physics step incl. overhead)"
         )

@@ -27,8 +27,9 @@ from pathlib import Path
 
 import cv2
 import gymnasium
-import hoap_actions  # noqa: F401 - registers the envs
 import numpy as np
+
+import hoap_actions  # noqa: F401 - registers the envs
 from hoap_actions.vision.perception import locate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -70,7 +71,8 @@ def measure(seeds: range, width: int, control_mode: str = "ee_delta") -> dict:
             else:
                 errors["peg"].append(error)
             if error > 0.001:
-                failures.append({"seed": seed, "peg": colour, "error_mm": 1000 * error, "confidence": detection.confidence})
+                failures.append({"seed": seed, "peg": colour, "error_mm": 1000 * error,
+                                 "confidence": detection.confidence})
         true_holes = scene.hole_positions()
         matched = set()
         for hole in found.holes:
@@ -90,9 +92,11 @@ def measure(seeds: range, width: int, control_mode: str = "ee_delta") -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("perception_accuracy.json")])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     parents=[arguments("perception_accuracy.json")])
     parser.add_argument("--seeds", type=int, nargs=2, default=HELD_OUT_SEEDS, metavar=("FIRST", "END"))
-    parser.add_argument("--width", type=int, default=320, help="image width in px, height 3/4 of it (default %(default)s)")
+    parser.add_argument("--width", type=int, default=320, help="image width in px, height 3/4 of it (default "
+                                                               "%(default)s)")
     parser.add_argument("--control-mode", default="ee_delta", choices=["ee_delta", "joint_delta"],
                         help="the posture the robot starts in: ee_delta's (hand out of view) or the home posture")
     args = parser.parse_args()
@@ -103,14 +107,17 @@ def main() -> None:
         mm = 1000 * np.asarray(result["errors"][kind])
         summary[kind] = {"median_error_mm": float(np.median(mm)), "max_error_mm": float(mm.max()),
                          "located": int(mm.size), "missed": result["missed"][kind], "phantom": result["phantom"][kind]}
-        print(f"{kind:5s} median {summary[kind]['median_error_mm']:.3f} mm  max {summary[kind]['max_error_mm']:.3f} mm  "
+        print(f"{kind:5s} median {summary[kind]['median_error_mm']:.3f} mm  max {summary[kind]['max_error_mm']:.3f} "
+              "mm  "
               f"located {mm.size}  missed {result['missed'][kind]}  phantom {result['phantom'][kind]}")
     render_ms, locate_ms = 1000 * np.median(result["render_s"]), 1000 * np.median(result["locate_s"])
-    print(f"per image ({args.width}x{args.width * 3 // 4}): render {render_ms:.1f} ms, perception {locate_ms:.1f} ms (medians)")
+    print(f"per image ({args.width}x{args.width * 3 // 4}): render {render_ms:.1f} ms, perception {locate_ms:.1f} ms "
+          "(medians)")
     for failure in result["failures"]:
         print("  over 1 mm or missed:", failure)
     write_json(args.output, {
-        "seeds": [seeds.start, seeds.stop], "control_mode": args.control_mode, "image_size": [args.width, args.width * 3 // 4], **summary,
+        "seeds": [seeds.start, seeds.stop], "control_mode": args.control_mode,
+        "image_size": [args.width, args.width * 3 // 4], **summary,
         "render_ms_median": render_ms, "perception_ms_median": locate_ms, "failures": result["failures"],
         "environment": numeric_environment(None, opencv=cv2.__version__),
     })

@@ -7,7 +7,7 @@ used to choose a setting) is recognised with
 :func:`hoap_actions.primitives.pipelines.recognize.recognize_recording`: frame and segment accuracy,
 edit score and phi error from the markers alone, class accuracy with the cuts given, and a
 frame-by-frame baseline. Each figure is reported per recording and as mean, standard deviation and
-95 % t-interval over the held-out recordings. How the defaults were chosen: ``results/NOTES.md``.
+95 % t-interval over the held-out recordings. How the defaults were chosen: ``docs/experiments/recognition.md``.
 
     python benchmarks/phmm_recognition.py [--train-seeds 0 1 ... 9] [--test-seeds 101 102 103] [--jobs 2]
 
@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json
 
 GOALS = {"frame_accuracy": 0.90, "edit_score": 0.90, "oracle_cut_accuracy": 0.97, "phi_error_median_m": 0.01}
 FIGURES = ("frame_accuracy", "segment_accuracy", "edit_score", "oracle_cut_accuracy", "phi_error_median_m",
@@ -48,8 +48,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.primitives.models.action_models import ActionModels
     from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.models.action_models import ActionModels
     from hoap_actions.primitives.pipelines.learn import learn
     from hoap_actions.primitives.pipelines.recognize import recognize_recording
 

@@ -9,7 +9,7 @@ interleaved so machine load hits both alike; medians are reported.
 
 BLAS threads default to 1 for both libraries (set before numpy loads): on a shared 2-core machine
 multithreaded BLAS on these small products is slow and erratic.  Writes ``results/phmm_speed.json``;
-earlier figures are in ``results/NOTES.md``.
+earlier figures are in ``docs/experiments/speed.md``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, use_blas_threads, write_json  # noqa: E402
+from _results import arguments, numeric_environment, use_blas_threads, write_json
 
 N_SEQUENCES, N_FRAMES, N_DIMS, N_STATES, N_PARAMS = 100, 200, 18, 40, 2
 GOAL_SPEEDUP = 5.0
@@ -51,8 +51,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     use_blas_threads(args.threads)
 
-    import numpy as np
     import hmmlearn
+    import numpy as np
     from hmmlearn.hmm import GaussianHMM
 
     from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM

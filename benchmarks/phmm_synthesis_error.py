@@ -11,10 +11,11 @@ Also: errors per marker, the effect of the number of states (``STATE_SWEEP``), f
 :class:`~hoap_actions.primitives.hmm.posture.PostureModel` of the training grid's frames (its penalty chosen by
 leaving out one training location at a time).
 
-    python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--posture] [--data DIR] [--demonstrator NAME]
+    python benchmarks/phmm_synthesis_error.py [--seeds 1 2 3] [--diagnose] [--posture] [--data DIR]
+        [--demonstrator NAME]
 
 Seeds: ``approach-grid`` seed 0 is the validation recording (every choice above was made looking at
-it); seeds 1, 2 and 3 were declared held-out before any run (``results/NOTES.md``). Recordings are
+it); seeds 1, 2 and 3 were declared held-out before any run (``docs/experiments/synthesis.md``). Recordings are
 ``data/approach-grid-s<seed>.h5``, recorded when missing (about 30 s each). ``--diagnose`` adds the
 interpolation limit: the state means of a model fitted in-sample on the 5x7 grid, interpolated from the
 training locations alone (thin-plate spline), against the same means everywhere: the part of the error
@@ -31,7 +32,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import (  # noqa: E402
+from _results import (
     arguments,
     ensure_recording,
     numeric_environment,
@@ -58,7 +59,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--posture", action="store_true",
                         help="also the chosen model with the shoulder and elbow from a posture model of the hand")
     parser.add_argument("--demonstrator", default="reference",
-                        help="who demonstrates in the recordings (hoap-actions record --demonstrator; default: %(default)s)")
+                        help="who demonstrates in the recordings (hoap-actions record --demonstrator; default: "
+                             "%(default)s)")
     return parser.parse_args(argv)
 
 
@@ -75,7 +77,12 @@ def evaluate_recording(path: Path, diagnose: bool, posture: bool = False) -> tup
     import numpy as np
 
     from hoap_actions.demonstration.datasets import load_demonstrations
-    from hoap_actions.primitives.evaluation.grid_synthesis import fit_grid_model, fit_grid_posture, grid_data, synthesis_map
+    from hoap_actions.primitives.evaluation.grid_synthesis import (
+        fit_grid_model,
+        fit_grid_posture,
+        grid_data,
+        synthesis_map,
+    )
     from hoap_actions.primitives.hmm.selection import select_mean_model
 
     data = grid_data(load_demonstrations(path))
@@ -146,8 +153,8 @@ def interpolation_limit(data) -> dict:
     training grid's locations (exact at them, with the affine side conditions), against the same means."""
     import numpy as np
 
-    from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures
     from hoap_actions.primitives.evaluation.grid_synthesis import TEST_GRID, fit_grid_model
+    from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures
 
     model, _ = fit_grid_model(data, TEST_GRID, n_states=N_STATES, mean_model="tps", smoothing=1e-2, **MODEL)
     keys = sorted(data.test)
@@ -224,8 +231,8 @@ def main(argv: list[str] | None = None) -> dict:
                                           "synthesis_ms_per_movement")}
     result = {
         "protocol": {"seeds": args.seeds, "demonstrator": args.demonstrator,
-                     "held_out": [s for s in args.seeds if s != 0 or args.demonstrator != "reference"], "n_states": N_STATES,
-                     **MODEL, "mean_model_candidates": [label(c) for c in candidates()],
+                     "held_out": [s for s in args.seeds if s != 0 or args.demonstrator != "reference"],
+                     "n_states": N_STATES, **MODEL, "mean_model_candidates": [label(c) for c in candidates()],
                      "selection": "select_mean_model on the training grid, one location per fold",
                      "phi": "object (x, y) at the end of the approach, m",
                      **({"posture": "PostureModel (degree 3) on the training grid's frames, alpha by leaving out one "

@@ -8,7 +8,7 @@ control; its simulated seconds per wall second bound any environment built on it
 
     python benchmarks/physics_floor.py [--runs 5] [--steps 480]
 
-Writes ``results/physics_floor.json``; earlier figures are in ``results/NOTES.md``.
+Writes ``results/physics_floor.json``; earlier figures are in ``docs/experiments/speed.md``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json
 
 ITERATIONS = (None, 10, 1)  # None: PyBullet's default (50)
 

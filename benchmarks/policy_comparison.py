@@ -9,7 +9,7 @@ centre error of the target peg and hole) and each synthesised path's largest dev
 executed hand path.
 
 Held-out layouts for the two robot models (``--robot full`` / ``fixed_legs``), each declared in
-``results/NOTES.md`` before its run and used once: 60000-60199 for both robots; 62000-62199 and then
+``docs/experiments/robot.md`` before its run and used once: 60000-60199 for both robots; 62000-62199 and then
 63000-63199 for the two later versions of the welded-legs robot.
 
     python benchmarks/policy_comparison.py [--seeds 30000 30200] [--workers 2] [--models DIR] [--robot fixed_legs]
@@ -24,8 +24,8 @@ import sys
 import time
 from pathlib import Path
 
-from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.apps.episodes import compare_policies, summarise
+from hoap_actions.envs.robot import ROBOT_MODELS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json
@@ -43,15 +43,17 @@ def main() -> None:
     seeds = range(*args.seeds)
     phmm_kwargs = {} if args.models is None else {"models": str(args.models)}
     start = time.perf_counter()
-    results = compare_policies("hoap_actions/PegInsert-v0", {"phmm": ("phmm", phmm_kwargs), "scripted": ("scripted", {})},
+    results = compare_policies("hoap_actions/PegInsert-v0",
+                               {"phmm": ("phmm", phmm_kwargs), "scripted": ("scripted", {})},
                                seeds, workers=args.workers, robot=args.robot)
-    document = {"seeds": list(args.seeds), "robot": args.robot, "workers": args.workers, "wall_s": time.perf_counter() - start,
-                "environment": numeric_environment(None)}
+    document = {"seeds": list(args.seeds), "robot": args.robot, "workers": args.workers,
+                "wall_s": time.perf_counter() - start, "environment": numeric_environment(None)}
     for name, episodes in results.items():
         summary = summarise(episodes)
         document[name] = summary
         low, high = summary["success_ci95"]
-        print(f"{name:>9} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over {len(episodes)} layouts, "
+        print(f"{name:>9} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "
+              f"{len(episodes)} layouts, "
               f"falls {summary['falls']}, mean episode {summary['mean_wall_s']:.1f} s, {summary['reasons']}")
         if "perception_error_m" in summary:
             p = summary["perception_error_m"]

@@ -7,7 +7,7 @@ the medians is printed beside the speeds.
 
     python benchmarks/record_speed.py [--preset small] [--runs 5] [--workers 1 2]
 
-Printed and written to ``results/record_speed.json``; earlier figures are in ``results/NOTES.md``.
+Printed and written to ``results/record_speed.json``; earlier figures are in ``docs/experiments/speed.md``.
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from hoap_actions.demonstration.tasks import FPS
-from hoap_actions.demonstration.recording import record
 from hoap_actions.demonstration.datasets import load_demonstrations
+from hoap_actions.demonstration.recording import record
+from hoap_actions.demonstration.tasks import FPS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json
 
 
 def time_run(preset: str, seed: int, directory: Path, workers: int = 1) -> tuple[float, int, int, int]:

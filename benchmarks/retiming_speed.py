@@ -6,7 +6,7 @@ repeats), at the hand's limits (0.5 m/s, 2 m/s^2, 20 m/s^3).
 
     python benchmarks/retiming_speed.py
 
-Prints the medians and writes ``results/retiming_speed.json``; earlier figures are in ``results/NOTES.md``.
+Prints the medians and writes ``results/retiming_speed.json``; earlier figures are in ``docs/experiments/speed.md``.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import ruckig
 from hoap_actions.controllers.retiming import DEFAULT_DT, StreamingRetimer, retime_path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, numeric_environment, write_json  # noqa: E402
+from _results import arguments, numeric_environment, write_json
 
 HAND_LIMITS = (0.5, 2.0, 20.0)  # m/s, m/s^2, m/s^3
 

@@ -1,7 +1,7 @@
 """Tracking in action space from the demonstration camera (the paper's Figs. 10-12): accuracy and speed.
 
 Protocol: :func:`hoap_actions.tracking.track_episode` on held-out ``paper`` recordings (the current
-tracker's: seeds 310-312, declared in ``results/NOTES.md`` before they were recorded; validation: seed
+tracker's: seeds 310-312, declared in ``docs/experiments/tracking.md`` before they were recorded; validation: seed
 300), episodes 0, 13, ..., 91 of each (every action of the preset), with the shipped models and the
 filter's seed 0. Per recording: RMS error of shoulder, elbow and finger (index tip) and of all six
 markers over whole episodes, the approach's estimated end at its last frame and the frames it took to
@@ -13,7 +13,8 @@ filter with 100 / 400 / 1600 particles (320 x 240) and at 160 x 120 / 320 x 240 
 particles), on one episode, rendering excluded, with the demonstration camera alone (``--side-camera``
 runs' own frame rates are in their per-episode figures).
 
-    python benchmarks/tracking.py [--seeds 310 311 312] [--episodes 0 13 26 ...] [--clutter --noise 0.03] [--side-camera]
+    python benchmarks/tracking.py [--seeds 310 311 312] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
+        [--side-camera]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
     python benchmarks/tracking.py --from-markers --output results/tracking_markers.json
 
@@ -33,7 +34,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json
 
 EPISODES = tuple(range(0, 104, 13))
 GOALS = {"rms_shoulder_elbow_finger_m": 0.02, "phi_error_m": 0.02, "frames_to_converge": 60, "frame_accuracy": 0.9,
@@ -50,14 +51,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--particles", type=int, default=400)
     parser.add_argument("--clutter", action="store_true", help="unrelated objects on the table")
     parser.add_argument("--noise", type=float, default=0.0, help="Gaussian image noise (share of full intensity)")
-    parser.add_argument("--side-camera", action="store_true", help="a second view from the demonstrator's right (eq. 9)")
+    parser.add_argument("--side-camera", action="store_true", help="a second view from the demonstrator's right (eq. "
+                                                                   "9)")
     parser.add_argument("--from-markers", action="store_true",
                         help="track from the recorded markers and block instead of images (no speed part)")
     parser.add_argument("--speed-only", action="store_true",
-                        help="measure frames per second only (on the first seed's last episode), e.g. on a quiet machine")
+                        help="measure frames per second only (on the first seed's last episode), e.g. on a quiet "
+                             "machine")
     args = parser.parse_args(argv)
     if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only):
-        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera and --speed-only")
+        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera and "
+                     "--speed-only")
     return args
 
 
@@ -103,7 +107,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
     }
     found = [r["frames_to_converge"] for r in runs if r["frames_to_converge"] is not None]
     pooled["frames_to_converge_median"] = float(np.median(found)) if found else None
-    return {"pooled": pooled, "episodes": [{k: v for k, v in r.items() if k not in ("recognized", "truth")} for r in runs]}
+    return {"pooled": pooled,
+            "episodes": [{k: v for k, v in r.items() if k not in ("recognized", "truth")} for r in runs]}
 
 
 def speed(models, demos, episode) -> dict:
@@ -135,8 +140,8 @@ def summarise(per_recording: dict) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
-    from hoap_actions.models.shipped import load_default_models
     from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.models.shipped import load_default_models
 
     started = time.perf_counter()
     models = load_default_models()

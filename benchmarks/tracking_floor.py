@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _results import arguments, ensure_recording, numeric_environment, spread, write_json  # noqa: E402
+from _results import arguments, ensure_recording, numeric_environment, spread, write_json
 
 EPISODES = tuple(range(0, 104, 13))
 
@@ -38,8 +38,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     import numpy as np
 
-    from hoap_actions.models.shipped import load_default_models
     from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.models.shipped import load_default_models
     from hoap_actions.tracking import SCORED_MARKERS, pose_floor
 
     started = time.perf_counter()

@@ -42,7 +42,8 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.controllers.retiming import StreamingRetimer
 from hoap_actions.controllers.wholebody_ik import PELVIS, IKResult, IKStatus, WholeBodyIK
 
-__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "RobotDescription", "StandingRobot", "rest_posture", "start_posture"]
+__all__ = ["HAND_LIMITS", "HandController", "HandLimits", "RobotDescription", "StandingRobot", "rest_posture",
+           "start_posture"]
 
 
 class StandingRobot(Protocol):
@@ -135,12 +136,18 @@ class RobotDescription:
 class HandController:
     """Moves the right hand of ``robot`` to a desired world position with the whole body standing.
 
-    Args:
-        robot: the robot to command (its ``set_targets`` gets the whole posture).
-        dt: tick period (s): one call of :meth:`tick` per physics step.
-        ik: the whole-body IK (default: one built on the robot's joints and :func:`rest_posture`).
-        limits: Cartesian velocity / acceleration / jerk limits of the hand reference.
-        integral_gain: gain (1/s) of the measured-error correction; 0 turns it off.
+    Parameters
+    ----------
+    robot
+        the robot to command (its ``set_targets`` gets the whole posture).
+    dt
+        tick period (s): one call of :meth:`tick` per physics step.
+    ik
+        the whole-body IK (default: one built on the robot's joints and :func:`rest_posture`).
+    limits
+        Cartesian velocity / acceleration / jerk limits of the hand reference.
+    integral_gain
+        gain (1/s) of the measured-error correction; 0 turns it off.
     """
 
     def __init__(

@@ -213,18 +213,26 @@ def retime_path(
     Why this shape: ruckig's own waypoint following is a cloud service in the community edition,
     so the path is followed by a single 1-DOF time-optimal profile on its arc length instead.
 
-    Args:
-        path: (N, n) points, e.g. a Cartesian hand path (N, 3) in m or joint angles in rad.
-            Repeated consecutive points are dropped.
-        v_max, a_max, j_max: per-axis limits, scalars or (n,), finite and > 0 (units/s^k).
-        dt: sampling period in s.
+    Parameters
+    ----------
+    path
+        (N, n) points, e.g. a Cartesian hand path (N, 3) in m or joint angles in rad.
+        Repeated consecutive points are dropped.
+    v_max, a_max, j_max
+        per-axis limits, scalars or (n,), finite and > 0 (units/s^k).
+    dt
+        sampling period in s.
 
-    Returns:
-        A :class:`TimedPath` starting at ``path[0]`` and ending at ``path[-1]`` exactly, at rest;
-        samples after the profile ends (the last partial period) hold the end point.
+    Returns
+    -------
+    TimedPath
+        Starting at ``path[0]`` and ending at ``path[-1]`` exactly, at rest; samples after the
+        profile ends (the last partial period) hold the end point.
 
-    Raises:
-        InvalidInputError: wrong shape, fewer than 2 points, NaN/inf, zero length, bad limits or dt.
+    Raises
+    ------
+    InvalidInputError
+        wrong shape, fewer than 2 points, NaN/inf, zero length, bad limits or dt.
     """
     points = _check_path(path)
     n = points.shape[1]

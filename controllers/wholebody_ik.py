@@ -118,30 +118,49 @@ class IKResult:
 class WholeBodyIK:
     """placo whole-body IK for the HOAP-3 model, in the joint order ``joint_names`` of the caller.
 
-    Args:
-        joint_names: the caller's joint order (e.g. ``Robot.joint_names``); every name must be a
-            revolute joint of the URDF.
-        home_posture: (n,) posture the regularisation pulls towards (rad).
-        dt: period of :meth:`solve` calls (s); with the URDF's velocity limits it bounds each step.
-        urdf: model file; defaults to the packaged ``hoap3.urdf``.
-        hand_weight: soft weight of the hand position task (per m^2 of error).
-        axis_weight: soft weight of the peg-axis-vertical task (per rad^2): low, so that where the
-            arm cannot reach with a level forearm the hand tilts rather than misses.
-        posture_weight: soft weight of the posture task (per rad^2).
-        pelvis_weight: soft weight keeping the pelvis level (per rad^2).
-        pelvis_xy_weight: soft weight holding the pelvis over its reset position (per m^2).
-        com_weight: soft weight of the CoM xy task towards the support polygon's centre (per m^2).
-        com_margin: how far inside the support polygon the CoM must stay (m).
-        tolerance: hand error (m) above which a solve reports ``TARGET_UNREACHED``.
-        frozen: joints the solver must not move (fewer free variables, a faster QP).
-        held, held_weight: joints kept near their posture by a stronger soft task (per rad^2).
-        joint_limits: ranges (rad) narrower than the URDF's for the IK only, e.g. the knees.
-        leg_damping: soft weight on each leg joint's step (per rad^2), against the QP's knee cycle.
-        body_speed: velocity limit (rad/s) of the legs and the waist in the IK (:attr:`body_speed`;
-            :meth:`set_body_speed` changes it for a while). A bolted trunk keeps it too: at the
-            URDF's 5 rad/s its swings shook grasps loose (4 slipped in 50 validation layouts).
-        fixed_legs: the robot's pelvis is fixed and its legs welded (they keep the angles given at
-            :meth:`reset`); no balance tasks.
+    Parameters
+    ----------
+    joint_names
+        the caller's joint order (e.g. ``Robot.joint_names``); every name must be a
+        revolute joint of the URDF.
+    home_posture
+        (n,) posture the regularisation pulls towards (rad).
+    dt
+        period of :meth:`solve` calls (s); with the URDF's velocity limits it bounds each step.
+    urdf
+        model file; defaults to the packaged ``hoap3.urdf``.
+    hand_weight
+        soft weight of the hand position task (per m^2 of error).
+    axis_weight
+        soft weight of the peg-axis-vertical task (per rad^2): low, so that where the
+        arm cannot reach with a level forearm the hand tilts rather than misses.
+    posture_weight
+        soft weight of the posture task (per rad^2).
+    pelvis_weight
+        soft weight keeping the pelvis level (per rad^2).
+    pelvis_xy_weight
+        soft weight holding the pelvis over its reset position (per m^2).
+    com_weight
+        soft weight of the CoM xy task towards the support polygon's centre (per m^2).
+    com_margin
+        how far inside the support polygon the CoM must stay (m).
+    tolerance
+        hand error (m) above which a solve reports ``TARGET_UNREACHED``.
+    frozen
+        joints the solver must not move (fewer free variables, a faster QP).
+    held, held_weight
+        joints kept near their posture by a stronger soft task (per rad^2).
+    joint_limits
+        ranges (rad) narrower than the URDF's for the IK only, e.g. the knees.
+    leg_damping
+        soft weight on each leg joint's step (per rad^2), against the QP's knee cycle.
+    body_speed
+        velocity limit (rad/s) of the legs and the waist in the IK (:attr:`body_speed`;
+        :meth:`set_body_speed` changes it for a while). A bolted trunk keeps it too: at the
+        URDF's 5 rad/s its swings shook grasps loose (4 slipped in 50 validation layouts).
+    fixed_legs
+        the robot's pelvis is fixed and its legs welded (they keep the angles given at
+        :meth:`reset`); no balance tasks.
     """
 
     def __init__(
@@ -171,7 +190,8 @@ class WholeBodyIK:
         home = np.asarray(home_posture, dtype=float)
         if home.shape != (len(self.joint_names),) or not np.all(np.isfinite(home)):
             raise InvalidInputError(
-                f"home_posture must be finite with shape ({len(self.joint_names)},), one angle per joint; got {home.shape}"
+                f"home_posture must be finite with shape ({len(self.joint_names)},), one angle per joint; got "
+                f"{home.shape}"
             )
         self.home_posture = home
         self.dt = float(dt)
@@ -420,7 +440,8 @@ class WholeBodyIK:
             T_hand = robot.get_T_world_frame(HAND)
             pull = target - T_hand[:3, 3]
             distance = float(np.linalg.norm(pull))
-            self._hand.target_world = T_hand[:3, 3] + pull * min(1.0, MAX_HAND_PULL / distance) if distance > 0.0 else target
+            self._hand.target_world = (T_hand[:3, 3] + pull * min(1.0, MAX_HAND_PULL / distance) if distance > 0.0
+                                       else target)
             self._tilt.R_world_frame = _heading(T_hand) @ self._tilt_rotation
             self.solver.solve(True)
             robot.update_kinematics()

@@ -464,7 +464,8 @@ def _check_markers(where: str, H: np.ndarray, gaps: bool) -> None:
     :data:`MAX_MISSING_FRACTION` of the episode's marker frames; within :data:`MAX_COORDINATE_M`."""
     present = np.isfinite(H)
     if gaps:
-        partial = np.flatnonzero((present.any(axis=2) & ~present.all(axis=2)).any(axis=1) | np.isinf(H).any(axis=(1, 2)))
+        partial = np.flatnonzero((present.any(axis=2) & ~present.all(axis=2)).any(axis=1)
+                                 | np.isinf(H).any(axis=(1, 2)))
         if partial.size:
             raise DataFileError(f"{where}: H frame {partial[0]} has a marker with some coordinates missing or inf; "
                                 "accepted: a missing marker is NaN in all 3 coordinates")

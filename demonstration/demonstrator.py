@@ -30,10 +30,10 @@ from hoap_actions.demonstration.arm_ik import (
     ArmIK,
     hand_rotation,
 )
-from hoap_actions.demonstration.scene import HAND_LINKS, DemoScene
-from hoap_actions.demonstration.tasks import DIRECTIONS, FPS, PHASE_NAMES, TURNS, DemoRecording, DemoTask
 from hoap_actions.demonstration.bodies import DEMONSTRATORS, DemonstratorProfile, human_urdf
 from hoap_actions.demonstration.minimum_jerk import bezier_length, minimum_jerk, minimum_jerk_curve
+from hoap_actions.demonstration.scene import HAND_LINKS, DemoScene
+from hoap_actions.demonstration.tasks import DIRECTIONS, FPS, PHASE_NAMES, TURNS, DemoRecording, DemoTask
 from hoap_actions.errors import InvalidInputError
 
 logger = logging.getLogger(__name__)
@@ -107,6 +107,7 @@ REST_HOLD_S = 0.25  # at rest after the remove
 RISE_FORWARD, RISE_SHARE_OF_Y, RISE_HEIGHT = 0.02, 0.3, 0.25  # first via point: up beside the body, a third across
 ABOVE_TARGET = 0.14  # second via point: this high over the target (offset 5 cm along the descent side)
 DESCEND_OFFSET = 0.05
+_STRAIGHT_DOWN = np.zeros(3)  # default descent side of a reach: none, straight down (only read, never mutated)
 LEAVE_AWAY, LEAVE_HEIGHT = 0.03, 0.18  # the remove's first via point: off the block and up
 VIA_JITTER, VIA_JITTER_LIMIT = 0.015, 0.03  # trial-to-trial spread of via points (std, clip)
 REST_JITTER, REST_JITTER_LIMIT = 0.006, 0.01  # ... of the rest pose the remove returns to
@@ -150,7 +151,8 @@ class Demonstrator:
         """``profile``: who demonstrates (:mod:`~hoap_actions.demonstration.bodies`); its body must be the
         one ``scene`` holds."""
         if profile.height_m != scene.body_height_m:
-            raise InvalidInputError(f"the demonstrator {profile.name!r} is {profile.height_m} m tall but the scene holds a "
+            raise InvalidInputError(f"the demonstrator {profile.name!r} is {profile.height_m} m tall but the scene "
+                                    "holds a "
                                     f"{scene.body_height_m} m body: make the scene with DemoScene(body_height_m=...)")
         self.profile = profile
         self.scene = scene
@@ -336,7 +338,7 @@ class Demonstrator:
 
     def _reach(
         self, site: str, target: np.ndarray, rotation: Rotation, fingers: np.ndarray,
-        descend_from: np.ndarray = np.zeros(3),
+        descend_from: np.ndarray = _STRAIGHT_DOWN,
     ) -> None:
         """Approach from rest: up out of the hanging pose, over the table edge, down onto ``target``
         (from above, offset 5 cm along ``descend_from``: a pushing hand comes down beside the block)."""

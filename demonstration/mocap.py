@@ -63,14 +63,16 @@ class MocapNoise:
         _check_number("object_sd_rad", self.object_sd_rad, math.radians(30.0))
         _check_number("gap_rate_hz", self.gap_rate_hz, 10.0)
         low, high = self.gap_frames if len(self.gap_frames) == 2 else (0, -1)
-        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (low, high)) or not 1 <= low <= high:
+        if (not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (low, high))
+                or not 1 <= low <= high):
             raise InvalidInputError(f"gap_frames must be two ints 1 <= shortest <= longest; got {self.gap_frames!r}")
         object.__setattr__(self, "gap_frames", (int(low), int(high)))
 
     @property
     def exact(self) -> bool:
         """No error of any kind: the recording is the simulation's poses."""
-        return not any((self.marker_sd_m, self.skin_offset_sd_m, self.gap_rate_hz, self.object_sd_m, self.object_sd_rad))
+        return not any((self.marker_sd_m, self.skin_offset_sd_m, self.gap_rate_hz, self.object_sd_m,
+                        self.object_sd_rad))
 
     @property
     def has_gaps(self) -> bool:

@@ -33,8 +33,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from hoap_actions.demonstration.scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
 from hoap_actions.demonstration.arm_ik import RECORDED_JOINTS
+from hoap_actions.demonstration.bodies import DEMONSTRATORS, DemonstratorProfile, demonstrator_profile
+from hoap_actions.demonstration.datasets import Demonstrations, Episode, GroundTruth, write_hdf5
+from hoap_actions.demonstration.demonstrator import Demonstrator
+from hoap_actions.demonstration.mocap import MocapNoise, add_mocap_noise, parse_noise
+from hoap_actions.demonstration.scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
 from hoap_actions.demonstration.tasks import (
     DIRECTIONS,
     FPS,
@@ -45,13 +49,9 @@ from hoap_actions.demonstration.tasks import (
     DemoRecording,
     DemoTask,
 )
-from hoap_actions.demonstration.demonstrator import Demonstrator
-from hoap_actions.demonstration.bodies import DEMONSTRATORS, DemonstratorProfile, demonstrator_profile
-from hoap_actions.demonstration.mocap import MocapNoise, add_mocap_noise, parse_noise
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_file
 from hoap_actions.parallel import ordered_map
-from hoap_actions.demonstration.datasets import Demonstrations, Episode, GroundTruth, write_hdf5
 from hoap_actions.seeds import check_seed
 
 logger = logging.getLogger(__name__)
@@ -61,6 +61,7 @@ ROTATE_ANGLE = np.radians(60.0)
 REPETITIONS = 4
 GRIDS = {"2x2": (2, 2), "3x3": (3, 3), "5x7": (5, 7)}
 _YAW_SPREAD = np.radians(5.0)
+_NO_NOISE = MocapNoise()  # the default noise: none, the exact poses (frozen, so one shared instance is safe)
 
 
 def _start_for(rng: np.random.Generator, step: np.ndarray) -> tuple[float, float]:
@@ -209,7 +210,7 @@ def _recordings(tasks: list[DemoTask], seed: int, workers: int, scene: DemoScene
 
 
 def _record_tasks(preset: str, tasks: list[DemoTask], seed: int, progress: bool, workers: int = 1,
-                  ray_address: str | None = None, noise: MocapNoise = MocapNoise(),
+                  ray_address: str | None = None, noise: MocapNoise = _NO_NOISE,
                   profile: DemonstratorProfile = DEMONSTRATORS["reference"]) -> Demonstrations:
     episodes, table_contacts, missed_grasps = [], [], []
     scene = DemoScene(body_height_m=profile.height_m)  # the recorded scene's numbers, and the scene for one worker

@@ -106,7 +106,8 @@ class DemoScene:
         q, object_pose = np.asarray(q, float), np.asarray(object_pose, float)
         if unknown or q.shape != (len(joint_names),) or object_pose.shape != (6,):
             raise InvalidInputError(f"a frame needs one angle per joint of the demonstrator ({sorted(joints)}) and a "
-                                    f"6-D object pose; got joints {list(joint_names)}, q {q.shape}, object {object_pose.shape}")
+                                    f"6-D object pose; got joints {list(joint_names)}, q {q.shape}, object "
+                                    f"{object_pose.shape}")
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(object_pose))):
             raise InvalidInputError("joint angles and object pose must be finite")
         self.sim.reset_joints("human", [joints[name] for name in joint_names], q)

@@ -24,9 +24,10 @@ ACTIONS = ("push", "move", "rotate", "approach")
 PHASE_NAMES = ("approach", *(f"push-{d}" for d in DIRECTIONS), *(f"move-{d}" for d in DIRECTIONS), "rotate", "remove")
 """Phase label table: a frame's label code indexes this tuple."""
 LABELS_VERSION = 2
-"""Which frames get which phase label (:mod:`hoap_actions.demonstration.demonstrator`). 1 (datasets without ``labels_version``): the
-grasp, the hold and release after a carry or turn, the push path's initial gap and the push's ease-off
-were labelled with the manipulation. 2: the grasp and the initial gap are approach, letting go is remove."""
+"""Which frames get which phase label (:mod:`hoap_actions.demonstration.demonstrator`). 1 (datasets
+without ``labels_version``): the grasp, the hold and release after a carry or turn, the push path's
+initial gap and the push's ease-off were labelled with the manipulation. 2: the grasp and the initial
+gap are approach, letting go is remove."""
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,8 @@ def check_image_size(width: object, height: object, what: str = "camera") -> Non
     negative sizes and runs out of memory on huge ones)."""
     for name, value in (("width", width), ("height", height)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_IMAGE_SIDE:
-            raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got {value!r}")
+            raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got "
+                                    f"{value!r}")
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,8 @@ class Camera:
         if any(v.shape != (3,) or not np.all(np.isfinite(v)) for v in (eye, target, up)):
             raise InvalidInputError("camera eye, target and up must be finite 3-vectors (m)")
         if np.linalg.norm(target - eye) < 1e-9 or np.linalg.norm(np.cross(target - eye, up)) < 1e-9:
-            raise InvalidInputError("camera eye and target must differ, and up must not be parallel to the view direction")
+            raise InvalidInputError("camera eye and target must differ, and up must not be parallel to the view "
+                                    "direction")
         if not 0.0 < self.fov_deg < 180.0:
             raise InvalidInputError(f"camera fov_deg must be in (0, 180) degrees; got {self.fov_deg!r}")
         if not 0.0 < self.near < self.far < np.inf:

@@ -53,10 +53,12 @@ def check_display() -> None:
     except subprocess.TimeoutExpired:
         code = 4
     if code == 3:
-        raise DisplayUnavailableError(f"render_mode='human' needs the X11 library (libX11), which is not installed; {hint}")
+        raise DisplayUnavailableError(f"render_mode='human' needs the X11 library (libX11), which is not installed; "
+                                      f"{hint}")
     if code == 4:
         raise DisplayUnavailableError(f"render_mode='human' cannot open the X display DISPLAY={name!r}; {hint}")
     if code == 5:
-        raise DisplayUnavailableError(f"the X display {name!r} has no OpenGL (GLX extension), which PyBullet's GUI needs; {hint}")
+        raise DisplayUnavailableError(f"the X display {name!r} has no OpenGL (GLX extension), which PyBullet's GUI "
+                                      f"needs; {hint}")
     if code != 0:
         raise DisplayUnavailableError(f"checking the X display {name!r} failed (exit {code}); {hint}")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import inspect
 import logging
-from dataclasses import dataclass, replace
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import gymnasium
@@ -18,10 +18,10 @@ import numpy as np
 from gymnasium import spaces
 
 from hoap_actions.controllers.hand_control import RobotDescription
+from hoap_actions.envs.camera import Camera, check_image_size
 from hoap_actions.envs.controls import CONTROL_MODES, make_controller
 from hoap_actions.envs.robot import ROBOT_MODELS, Robot
 from hoap_actions.envs.scene import Scene
-from hoap_actions.envs.camera import Camera, check_image_size
 from hoap_actions.envs.sim import Sim
 from hoap_actions.envs.task import Task
 from hoap_actions.errors import EnvClosedError, InvalidInputError
@@ -91,9 +91,9 @@ class HoapEnv(gymnasium.Env):
     Rewards (``reward_type``): sparse 0 on success else -1, dense minus the goal distance capped at
     1 m; a fall ends the episode and costs a whole episode's worth of -1s (:meth:`compute_reward`),
     so no learner gains by falling. ``info["is_success"]`` is set on reset and on every step. The
-    episode terminates on success or when the robot falls; the time limit is applied by Gymnasium's ``TimeLimit`` on registration.
-    ``render_mode="human"`` opens PyBullet's window; without a display it raises
-    :class:`~hoap_actions.errors.DisplayUnavailableError`.
+    episode terminates on success or when the robot falls; the time limit is applied by Gymnasium's
+    ``TimeLimit`` on registration. ``render_mode="human"`` opens PyBullet's window; without a display it
+    raises :class:`~hoap_actions.errors.DisplayUnavailableError`.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": int(round(240 / PHYSICS_STEPS_PER_ACTION))}
@@ -221,7 +221,8 @@ class HoapEnv(gymnasium.Env):
         if vector.shape != expected:
             raise InvalidInputError(f"obs['observation'] has shape {vector.shape}; this env's is {expected}")
         n = len(self.robot.joint_names)
-        sizes = {"joint_positions": n, "joint_velocities": n, "base_position": 3, "base_quaternion": 4, "tcp_position": 3}
+        sizes = {"joint_positions": n, "joint_velocities": n, "base_position": 3, "base_quaternion": 4,
+                 "tcp_position": 3}
         fields: dict[str, Any] = {}
         offset = 0
         for name, size in sizes.items():
@@ -233,7 +234,8 @@ class HoapEnv(gymnasium.Env):
         """An rgb-d image from one of the scene's cameras (``sim.cameras``), as a robot's camera would
         give it: a policy that perceives the world calls this instead of reading the simulator."""
         if camera not in self.sim.cameras:
-            raise InvalidInputError(f"camera={camera!r} is not a camera of this scene; accepted: {sorted(self.sim.cameras)}")
+            raise InvalidInputError(f"camera={camera!r} is not a camera of this scene; accepted: "
+                                    f"{sorted(self.sim.cameras)}")
         check_image_size(width, height, what="capture")
         view = replace(self.sim.cameras[camera], width=width, height=height)
         image = self.sim.render(view)
@@ -263,7 +265,8 @@ class HoapEnv(gymnasium.Env):
         unknown = sorted(set(task_kwargs) - set(task_params))
         if unknown:
             env_params = list(inspect.signature(HoapEnv.__init__).parameters)[1:-1]
-            raise TypeError(f"{cls.__name__} got unknown keyword argument(s) {unknown}; accepted: {env_params + task_params}")
+            raise TypeError(f"{cls.__name__} got unknown keyword argument(s) {unknown}; accepted: "
+                            f"{env_params + task_params}")
 
     def _checked_action(self, action: Any) -> tuple[np.ndarray, bool]:
         """The action as float64 clipped to the Box, and whether clipping changed it."""

@@ -4,8 +4,9 @@
 the HOAP-3 torque limits and joint speeds clamped at the URDF's velocity limits (5 rad/s). Two models
 (:data:`ROBOT_MODELS`): ``"full"``, free-standing on 28 motorised joints, and ``"fixed_legs"``, the same
 robot bolted at the pelvis with its legs welded in the standing posture (16 motors; a PegInsert
-physics step costs a quarter as much, with the env's 10 solver iterations for it). Joint vectors are ``(28,)`` float arrays in :attr:`Robot.joint_names` order (radians)
-for both, so observations and policies do not depend on the model; quaternions are ``(x, y, z, w)``.
+physics step costs a quarter as much, with the env's 10 solver iterations for it). Joint vectors are
+``(28,)`` float arrays in :attr:`Robot.joint_names` order (radians) for both, so observations and
+policies do not depend on the model; quaternions are ``(x, y, z, w)``.
 """
 
 from __future__ import annotations
@@ -63,16 +64,24 @@ class Robot:
     posture and table-top reaches keep the limbs apart, and whole-body IK (placo) can avoid
     self-contact where it matters.
 
-    Args:
-        sim: the simulator that owns the body.
-        name: body name in ``sim``.
-        model: ``"full"`` or ``"fixed_legs"`` (:data:`ROBOT_MODELS`).
-        feet_xy: (x, y) of the midpoint between the ankles on the floor (m); default
-            :data:`~hoap_actions.envs.world.ROBOT_FEET_XY`, or
-            :data:`~hoap_actions.envs.world.FIXED_LEGS_FEET_XY` for the welded-legs model.
-        yaw: heading about +z (rad); 0 faces +x.
-        floor_z: height of the floor plane (m); the floor body itself belongs to the scene.
-        position_gain, velocity_gain: PyBullet position-control gains, in [0, 1].
+    Parameters
+    ----------
+    sim
+        the simulator that owns the body.
+    name
+        body name in ``sim``.
+    model
+        ``"full"`` or ``"fixed_legs"`` (:data:`ROBOT_MODELS`).
+    feet_xy
+        (x, y) of the midpoint between the ankles on the floor (m); default
+        :data:`~hoap_actions.envs.world.ROBOT_FEET_XY`, or
+        :data:`~hoap_actions.envs.world.FIXED_LEGS_FEET_XY` for the welded-legs model.
+    yaw
+        heading about +z (rad); 0 faces +x.
+    floor_z
+        height of the floor plane (m); the floor body itself belongs to the scene.
+    position_gain, velocity_gain
+        PyBullet position-control gains, in [0, 1].
     """
 
     def __init__(
@@ -109,7 +118,8 @@ class Robot:
         self._motorised = np.array([i for i, n in enumerate(self.joint_names) if n in motors])
         """Positions in the joint vector of the joints with a motor (all 28, or 16 with welded legs)."""
         self._indices = [motors[self.joint_names[i]].index for i in self._motorised]
-        self._motor_index = dict(zip(self._motorised.tolist(), self._indices))  # joint-vector position -> PyBullet joint
+        # joint-vector position -> PyBullet joint
+        self._motor_index = dict(zip(self._motorised.tolist(), self._indices))
         welds = {n: standing_leg_angle(n) for n in self.joint_names if n not in motors}
         self.lower = np.array([motors[n].lower if n in motors else welds[n] for n in self.joint_names])
         self.upper = np.array([motors[n].upper if n in motors else welds[n] for n in self.joint_names])

@@ -44,7 +44,7 @@ def _c_output_silenced(fd: int = 2) -> Iterator[None]:
 
 with _c_output_silenced():  # PyBullet's C module prints its build time when imported
     import pybullet
-from pybullet_utils.bullet_client import BulletClient  # noqa: E402
+from pybullet_utils.bullet_client import BulletClient  # noqa: E402  (after the silenced pybullet import)
 
 logger = logging.getLogger(__name__)
 
@@ -57,7 +57,7 @@ class _Client(BulletClient):
     an env step). It connects without an options string: given one, even empty, PyBullet prints
     ``argv[0]=`` on stdout."""
 
-    def __init__(self, connection_mode: int) -> None:  # noqa: D107 - BulletClient's attributes, no options
+    def __init__(self, connection_mode: int) -> None:
         self._shapes: dict = {}
         self._pid = os.getpid()
         self._client = pybullet.connect(connection_mode)
@@ -142,7 +142,8 @@ class Sim:
         except pybullet.error as exc:  # e.g. a second GUI in this process
             raise DisplayUnavailableError(
                 f"PyBullet could not open its {'GUI' if gui else 'DIRECT'} server: {exc}"
-                + (" Close the other render_mode='human' environment first, or use render_mode='rgb_array'." if gui else "")
+                + (" Close the other render_mode='human' environment first, or use render_mode='rgb_array'."
+                   if gui else "")
             ) from None
         self.timestep = float(timestep)
         self.shadows = shadows
@@ -429,7 +430,8 @@ class Sim:
         movable = {joint.index for joint in self._joints[name]}
         unknown = [j for j in indices if j not in movable]
         if unknown:
-            raise InvalidInputError(f"joints {unknown} are not movable joints of body {name!r}; its joints: {sorted(movable)}")
+            raise InvalidInputError(f"joints {unknown} are not movable joints of body {name!r}; its joints: "
+                                    f"{sorted(movable)}")
         limits = np.asarray(limits, dtype=float)
         if limits.shape != (len(indices),) or not np.all(np.isfinite(limits)) or np.any(limits <= 0.0):
             raise InvalidInputError(

@@ -3,7 +3,8 @@ action held for several steps."""
 
 from __future__ import annotations
 
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -92,7 +93,8 @@ class ResidualAction(_ForwardsReward, gymnasium.Wrapper):
         if np.shape(action) != space.shape:
             raise InvalidInputError(f"action has shape {np.shape(action)}; a residual must have the action space's "
                                     f"shape {space.shape}")
-        total = np.clip(np.asarray(self.base(self._last_obs), dtype=float) + self.scale * np.asarray(action, dtype=float),
+        total = np.clip(np.asarray(self.base(self._last_obs), dtype=float)
+                        + self.scale * np.asarray(action, dtype=float),
                         space.low, space.high).astype(space.dtype)
         obs, reward, terminated, truncated, info = self.env.step(total)
         self._last_obs = obs

@@ -4,7 +4,8 @@ Learns action models from ``paper`` recordings (discovery on the object trajecto
 HMM per discovered class, the action grammar), then cuts a held-out episode into primitives and
 names each, with where it started and ended (its effect phi), as discovery would from the object.
 
-    python examples/phmm_recognition.py [--train data/paper-s0.h5 data/paper-s2.h5] [--test data/paper-s3.h5] [--episode 5]
+    python examples/phmm_recognition.py [--train data/paper-s0.h5 data/paper-s2.h5] [--test data/paper-s3.h5]
+        [--episode 5]
 
 Missing recordings are made first (about half a minute each). The full evaluation is
 ``benchmarks/phmm_recognition.py``; the command line has the same pipeline as ``hoap-actions learn``
@@ -19,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hoap_actions.demonstration.recording import record
 from hoap_actions.demonstration.datasets import load_demonstrations
-from hoap_actions.primitives.pipelines.learn import learn
+from hoap_actions.demonstration.recording import record
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.pipelines.learn import learn
 
 
 def recording(path: Path) -> Path:

@@ -30,11 +30,12 @@ def main() -> None:
     policy = PHMMPolicy(env)  # the shipped models; PHMMPolicy(env, models="out/models") for your own
     obs, info = env.reset(seed=args.seed)
     policy.reset(obs, info)
-    for step in range(env.spec.max_episode_steps):
+    for step in range(env.spec.max_episode_steps):  # noqa: B007  (step is read after the loop: steps taken)
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         if terminated or truncated or policy.failure or policy.done:
             break
-    print(f"seed {args.seed}: {'success' if info['is_success'] else policy.failure or 'not inserted'} after {step + 1} steps; "
+    print(f"seed {args.seed}: {'success' if info['is_success'] else policy.failure or 'not inserted'} after "
+          f"{step + 1} steps; "
           f"largest path deviation {max(policy.path_deviations().values()) * 1000:.1f} mm")
     iio.imwrite(args.out / "fig9.png", policy.figure())
     print(f"wrote {args.out / 'fig9.png'}")

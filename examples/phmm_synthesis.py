@@ -57,7 +57,8 @@ def main() -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     for k, (x, _) in enumerate(data.test[key]):
         ax.plot(x[:, 7], x[:, 8], color="tab:blue", alpha=0.5, label="human" if k == 0 else None)
-    ax.plot(synthesised[:, 7], synthesised[:, 8], color="tab:red", linewidth=2, label=f"{args.mean_model} PHMM synthesis")
+    ax.plot(synthesised[:, 7], synthesised[:, 8], color="tab:red", linewidth=2, label=f"{args.mean_model} PHMM "
+                                                                                      "synthesis")
     ax.set_xlabel("wrist y (m)")
     ax.set_ylabel("wrist z (m)")
     ax.set_title(f"reach to {target.round(2)} m")

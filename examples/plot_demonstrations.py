@@ -15,11 +15,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-from hoap_actions.demonstration.datasets import Demonstrations, load_demonstrations  # noqa: E402
+from hoap_actions.demonstration.datasets import Demonstrations, load_demonstrations
 
 
 def pick(demos: Demonstrations, count: int) -> list[int]:

@@ -18,7 +18,7 @@ it ``env.unwrapped``. A fall ends an episode and costs a whole episode of -1s, s
 Every ``--eval-every`` steps the deterministic policy runs ``--eval-episodes`` layouts from
 ``--eval-first-seed`` (never used in training) and prints success, falls, training steps and wall
 time. The default layouts, 50000-50049, chose the settings here (a validation split); a headline
-figure names fresh seeds declared before its run (``benchmarks/results/NOTES.md``). Variants, each
+figure names fresh seeds declared before its run (``docs/experiments/rl.md``). Variants, each
 measured there: ``--fields`` (a part of the observation, ``SelectObservation``), ``--gamma``,
 ``--demo-steps`` (the straight-line reach takes the first steps), ``--residual`` (corrections to it,
 ``ResidualAction``, ``--residual-scale``), ``--repeat`` (each decision held for several steps, ``RepeatAction``;
@@ -38,10 +38,10 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
-from hoap_actions.policies.registry import StraightReach
 from hoap_actions.envs.wrappers import RepeatAction, ResidualAction, SelectObservation
 from hoap_actions.errors import HoapActionsError
 from hoap_actions.outputs import claimed_directory, claimed_file
+from hoap_actions.policies.registry import StraightReach
 
 VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
 CONTROL_MODE = "ee_delta"
@@ -99,7 +99,7 @@ def main() -> None:
                         help="no training: evaluate the policy saved in DIR (by --save) on the evaluation layouts")
     parser.add_argument("--torch-threads", type=int, default=1,
                         help="PyTorch threads (default 1: two runs side by side on 2 cores with PyTorch's default "
-                             "threads oversubscribe the cores, benchmarks/results/NOTES.md)")
+                             "threads oversubscribe the cores, docs/experiments/rl.md)")
     parser.add_argument("--gamma", type=float, default=0.95,
                         help="discount factor (0.95 as for Fetch reaches; a reach here takes 40-60 steps at 5 mm each)")
     parser.add_argument("--demo-steps", type=int, default=0, metavar="N",
@@ -118,7 +118,7 @@ def main() -> None:
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
     try:
-        import stable_baselines3  # noqa: F401
+        import stable_baselines3  # noqa: F401  (only checks that it is installed)
     except ImportError:
         raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
 
@@ -137,14 +137,16 @@ def main() -> None:
     if args.evaluate is not None:
         try:
             saved = json.loads((args.evaluate / "settings.json").read_text())
-            make_env(saved["env"], saved["fields"], *_residual_and_repeat(saved)).close()  # the env it acted in can be made
+            # the env it acted in can be made
+            make_env(saved["env"], saved["fields"], *_residual_and_repeat(saved)).close()
         except (OSError, ValueError, KeyError, TypeError, HoapActionsError):
             print(f"error: {args.evaluate} holds no policy saved by --save (a readable settings.json naming its env)",
                   file=sys.stderr)
             raise SystemExit(2) from None
         with contextlib.ExitStack() as claims:
             try:
-                partial = claims.enter_context(claimed_file(args.json, args.overwrite, "evaluation")) if args.json else None
+                partial = (claims.enter_context(claimed_file(args.json, args.overwrite, "evaluation")) if args.json
+                           else None)
             except HoapActionsError as error:
                 print(f"error: {error}", file=sys.stderr)
                 raise SystemExit(2) from None
@@ -158,7 +160,8 @@ def main() -> None:
         try:
             if args.fields:
                 make_env(args.env, args.fields).close()  # unknown fields fail here, before any training
-            partial = claims.enter_context(claimed_file(args.json, args.overwrite, "learning curve")) if args.json else None
+            partial = (claims.enter_context(claimed_file(args.json, args.overwrite, "learning curve")) if args.json
+                       else None)
             folder = claims.enter_context(claimed_directory(args.save, args.overwrite, "policy")) if args.save else None
         except HoapActionsError as error:
             print(f"error: {error}", file=sys.stderr)
@@ -194,9 +197,10 @@ def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     residual, repeat = _residual_and_repeat(saved)
-    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual, repeat)])  # HER's buffer asks for an env
+    # HER's buffer asks for an env
+    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual, repeat)])
     model = SAC.load(folder / "policy.zip", env=venv, device="cpu")
-    normalize = lambda obs: obs  # noqa: E731
+    normalize = lambda obs: obs  # noqa: E731  (the identity, replaced when normalising)
     if (folder / "normalize.pkl").is_file():
         stats = VecNormalize.load(str(folder / "normalize.pkl"), venv)
         stats.training = False
@@ -220,7 +224,7 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
     venv = make_vec_env(make_env, n_envs=1, seed=args.seed,
                         env_kwargs={"env_id": args.env, "fields": args.fields, "residual": residual,
                                     "repeat": args.repeat})
-    normalize = lambda obs: obs  # noqa: E731
+    normalize = lambda obs: obs  # noqa: E731  (the identity, replaced when normalising)
     if args.normalize:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
 
@@ -241,28 +245,32 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
 
     model = SACFromDemonstrations(
                 "MultiInputPolicy", venv, replay_buffer_class=None if args.residual else HerReplayBuffer,
-                replay_buffer_kwargs=None if args.residual else {"n_sampled_goal": 4, "goal_selection_strategy": "future"},
-                learning_starts=max(1000, args.demo_steps // args.repeat), learning_rate=1e-3, gamma=args.gamma, tau=0.05, batch_size=256,
-                policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
+                replay_buffer_kwargs=(None if args.residual
+                                      else {"n_sampled_goal": 4, "goal_selection_strategy": "future"}),
+                learning_starts=max(1000, args.demo_steps // args.repeat), learning_rate=1e-3, gamma=args.gamma,
+                tau=0.05, batch_size=256, policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
     curve, start = [], time.perf_counter()
     for _ in range(0, args.steps, args.eval_every):
         model.learn(args.eval_every // args.repeat, reset_num_timesteps=False)  # decisions; the env's steps <= K times
         point = {"steps": int(model.num_timesteps) * args.repeat, "decisions": int(model.num_timesteps),
                  "train_wall_s": time.perf_counter() - start,
-                 "training_success_last_100": float(np.mean(model.ep_success_buffer)) if model.ep_success_buffer else None,
+                 "training_success_last_100": (float(np.mean(model.ep_success_buffer)) if model.ep_success_buffer
+                                               else None),
                  **evaluate(model, args.env, args.fields, eval_seeds, normalize, residual, args.repeat)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
         print(f"{point['steps']:6d} steps, {point['train_wall_s'] / 60:5.1f} min: success {point['success_rate']:.0%} "
-              f"on {point['episodes']} layouts (median end distance {np.median(point['final_distance_m']) * 100:.1f} cm; "
+              f"on {point['episodes']} layouts (median end distance {np.median(point['final_distance_m']) * 100:.1f} "
+              "cm; "
               f"training episodes, last 100: {_share(point['training_success_last_100'])}), falls {point['falls']}",
               flush=True)
     if folder is not None:
         model.save(folder / "policy.zip")
         if args.normalize:
             venv.save(str(folder / "normalize.pkl"))
-        (folder / "settings.json").write_text(json.dumps({**settings(args), "steps": int(model.num_timesteps) * args.repeat}))
+        (folder / "settings.json").write_text(json.dumps({**settings(args),
+                                                          "steps": int(model.num_timesteps) * args.repeat}))
     venv.close()
     return curve
 

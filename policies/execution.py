@@ -34,10 +34,14 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from hoap_actions.controllers.hand_control import rest_posture
+from hoap_actions.controllers.wholebody_ik import WholeBodyIK
+from hoap_actions.envs import scene as scene_module
+from hoap_actions.envs.controls import HAND_BOX_HIGH, HAND_BOX_LOW, MAX_HAND_STEP
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.policies.grasp import (
     GRASP_CLOSURE,
     GRASP_SHIFTS,
-    PALM_CLEARANCE,
     PALM_GAP,
     PRE_CLOSURE,
     GraspPlan,
@@ -45,11 +49,6 @@ from hoap_actions.policies.grasp import (
     hand_axes,
     plan_grasp,
 )
-from hoap_actions.controllers.hand_control import rest_posture
-from hoap_actions.controllers.wholebody_ik import WholeBodyIK
-from hoap_actions.envs import scene as scene_module
-from hoap_actions.envs.controls import HAND_BOX_HIGH, HAND_BOX_LOW, MAX_HAND_STEP
-from hoap_actions.errors import InvalidInputError
 
 __all__ = ["GraspAndInsert", "Leg", "WorldEstimate", "straight_leg"]
 
@@ -129,7 +128,8 @@ class GraspAndInsert(ABC):
                                     f"{list(self.env_ids)}, not {spec_id or type(env).__name__}")
         control_mode = env.get_wrapper_attr("control_mode")
         if control_mode != self.control_mode:
-            raise InvalidInputError(f"{type(self).__name__} needs control_mode='ee_delta'; this env uses {control_mode!r}")
+            raise InvalidInputError(f"{type(self).__name__} needs control_mode='ee_delta'; this env uses "
+                                    f"{control_mode!r}")
         self.env = env
         self._parse = env.get_wrapper_attr("parse_observation")
         self._fps = float(env.metadata["render_fps"])
@@ -306,7 +306,8 @@ class GraspAndInsert(ABC):
         if phase == Phase.APPROACH:
             # coming down on something: the hand stays above its reference
             low = len(self.legs) == 1 and self.point >= len(self.legs[0].points) - 1
-            self.blocked_steps = self.blocked_steps + 1 if low and self.tcp[2] - status.reference[2] > BLOCKED_HEIGHT else 0
+            self.blocked_steps = (self.blocked_steps + 1 if low and self.tcp[2] - status.reference[2] > BLOCKED_HEIGHT
+                                  else 0)
             if self.blocked_steps >= BLOCKED_STEPS:
                 self._enter(Phase.BACK_OFF, self.back_off_legs(self.tcp.copy()))
             elif self._leg_done(speed):
@@ -384,5 +385,6 @@ class GraspAndInsert(ABC):
             self._enter(Phase.RELEASE)
 
     def _check_slip(self, peg: tuple[np.ndarray, bool] | None) -> None:
-        if peg is not None and np.linalg.norm(self.tcp + self.hand_rotation_now() @ self.peg_in_hand - peg[0]) > SLIP_DISTANCE:
+        if (peg is not None
+                and np.linalg.norm(self.tcp + self.hand_rotation_now() @ self.peg_in_hand - peg[0]) > SLIP_DISTANCE):
             self.failure = "grasp slipped"

@@ -54,14 +54,15 @@ from hoap_actions.controllers.retiming import retime_path
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.envs import world
 from hoap_actions.errors import ExtrapolationWarning, InvalidInputError
-from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION, REMOVE
+from hoap_actions.primitives.models.action_models import ActionModels
 
 __all__ = ["CARRY_CLEARANCE", "PHMMPaths", "SceneMap", "carry_action", "resample", "warp"]
 
 CARRY_CLEARANCE = 0.01  # m, how far the learned carry's lift takes a held peg's bottom over the board's top
 SMOOTHING_S = 0.05  # s, standard deviation of the Gaussian that rounds the interpolated state means
-RESAMPLE_SPACING = 0.005  # m of arc length between the points a path is retimed through (0.7 mm corner cutting, measured)
+# m of arc length between the points a path is retimed through (0.7 mm corner cutting, measured)
+RESAMPLE_SPACING = 0.005
 DEMONSTRATION_FPS = 100.0  # Hz, the recordings' frame rate (the PHMM's time step)
 HAND_MARKER = "wrist"
 
@@ -137,10 +138,14 @@ def warp(path: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
 class PHMMPaths:
     """The robot's approach, move and remove hand paths from fitted action models (module docstring).
 
-    Args:
-        models: fitted :class:`ActionModels` with an action level.
-        limits: the hand's Cartesian limits the paths are retimed under.
-        dt: the period the retimed paths are sampled at (s): one point per env step.
+    Parameters
+    ----------
+    models
+        fitted :class:`ActionModels` with an action level.
+    limits
+        the hand's Cartesian limits the paths are retimed under.
+    dt
+        the period the retimed paths are sampled at (s): one point per env step.
     """
 
     def __init__(self, models: ActionModels, limits: HandLimits = HAND_LIMITS,
@@ -165,7 +170,8 @@ class PHMMPaths:
             warnings.simplefilter("ignore", ExtrapolationWarning)
             return self.models.synthesize_action(action, phi)
 
-    def _robot_path(self, markers: np.ndarray, start: np.ndarray, end: np.ndarray, trim: bool | None = None) -> np.ndarray:
+    def _robot_path(self, markers: np.ndarray, start: np.ndarray, end: np.ndarray,
+                    trim: bool | None = None) -> np.ndarray:
         """Hand-point path smoothed, cut to its part over the table (``trim``: True from where it
         rises, False up to where it sinks), mapped to the robot and warped onto ``start`` and ``end``."""
         human = gaussian_filter1d(markers[:, self._hand], SMOOTHING_S * DEMONSTRATION_FPS, axis=0, mode="nearest")
@@ -189,7 +195,8 @@ class PHMMPaths:
 
     def remove(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Tcp path (T, 3) from ``start`` to ``end`` (m), shaped by the remove action."""
-        markers = self._synthesize(self.remove_id, np.r_[self.map.to_human(start), self._training_mean(self.remove_id)[3:]])
+        markers = self._synthesize(self.remove_id,
+                                   np.r_[self.map.to_human(start), self._training_mean(self.remove_id)[3:]])
         return self._robot_path(markers, start, end, trim=False)
 
     def timed(self, path: np.ndarray, limits: HandLimits | None = None) -> np.ndarray:

@@ -30,12 +30,12 @@ import gymnasium
 import numpy as np
 
 from hoap_actions.controllers.hand_control import HandLimits
+from hoap_actions.envs import scene as scene_module
 from hoap_actions.policies.execution import GraspAndInsert, Leg, Phase, WorldEstimate
 from hoap_actions.policies.figures import draw_episode
-from hoap_actions.vision.perception import Detections, locate
 from hoap_actions.policies.phmm_paths import PHMMPaths, resample
-from hoap_actions.envs import scene as scene_module
 from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.vision.perception import Detections, locate
 
 __all__ = ["PHMMPolicy"]
 
@@ -51,10 +51,13 @@ CARRY_LIMITS = HandLimits(velocity=0.15, acceleration=0.3, jerk=3.0)
 class PHMMPolicy(GraspAndInsert):
     """``obs -> action`` grasp-and-insert from the camera and the learned models (module docstring).
 
-    Args:
-        env: a PegInsert env made with ``control_mode="ee_delta"`` (wrappers are fine).
-        models: fitted :class:`ActionModels` with an action level, or a models directory; default:
-            the package's shipped models (:func:`hoap_actions.models.shipped.load_default_models`).
+    Parameters
+    ----------
+    env
+        a PegInsert env made with ``control_mode="ee_delta"`` (wrappers are fine).
+    models
+        fitted :class:`ActionModels` with an action level, or a models directory; default:
+        the package's shipped models (:func:`hoap_actions.models.shipped.load_default_models`).
     """
 
     def __init__(self, env: gymnasium.Env, models: ActionModels | str | Path | None = None) -> None:

@@ -7,11 +7,11 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from hoap_actions.policies.phmm_policy import PHMMPolicy
-from hoap_actions.policies.scripted_expert import ScriptedExpert
 from hoap_actions.envs import ENV_IDS
 from hoap_actions.envs.controls import MAX_HAND_STEP
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.phmm_policy import PHMMPolicy
+from hoap_actions.policies.scripted_expert import ScriptedExpert
 
 
 class RandomPolicy:

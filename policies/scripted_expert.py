@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from hoap_actions.envs import scene as scene_module
+from hoap_actions.envs import world
 from hoap_actions.policies.execution import (
     ALIGN_HEIGHT,
     KNOCKED_OVER,
@@ -29,8 +31,6 @@ from hoap_actions.policies.execution import (
     straight_leg,
 )
 from hoap_actions.policies.grasp import REACH_PROBE_TOLERANCE, footprint_clearance, thumb_outline
-from hoap_actions.envs import scene as scene_module
-from hoap_actions.envs import world
 
 __all__ = ["ScriptedExpert", "footprint_clearance", "thumb_outline"]
 
@@ -52,8 +52,10 @@ def _segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
 class ScriptedExpert(GraspAndInsert):
     """``obs -> action`` grasp-and-insert from the true poses, with straight hand paths (module docstring).
 
-    Args:
-        env: a PegInsert env made with ``control_mode="ee_delta"`` (wrappers are fine).
+    Parameters
+    ----------
+    env
+        a PegInsert env made with ``control_mode="ee_delta"`` (wrappers are fine).
     """
 
     # ------------------------------------------------------------------ the world, from the observation
@@ -110,7 +112,8 @@ class ScriptedExpert(GraspAndInsert):
         for offset in np.arange(0.01, 0.081, 0.01):
             for sign in (1.0, -1.0):
                 via = middle + sign * offset * normal
-                if min(_segment_distance(others, start, via).min(), _segment_distance(others, via, end).min()) >= CARRY_CLEARANCE:
+                if min(_segment_distance(others, start, via).min(),
+                       _segment_distance(others, via, end).min()) >= CARRY_CLEARANCE:
                     return [via, end]
         return [end]
 

@@ -1,12 +1,14 @@
 """The estimator contract shared by the package's models: parameters, fitted check, versioned files.
 
-Every estimator takes its hyper-parameters in ``__init__`` (stored under the same names), learns in
-``fit`` (returning ``self``) into attributes ending with ``_``, and saves to one documented file
-format. :class:`Estimator` derives ``get_params`` and ``repr`` from the ``__init__`` signature, as
-scikit-learn does, and owns the parts of ``save`` and ``load`` that every format shares: a model is
-written only once fitted, and a file is read only if its ``kind`` and ``format_version`` are ones
-this estimator reads. Each estimator supplies the format itself (:meth:`Estimator._write`,
-:meth:`Estimator._read`, :meth:`Estimator._from_file`).
+Every estimator takes its hyper-parameters in ``__init__`` (stored under the same names, checked by
+one hook, :meth:`Estimator._check_params`), learns in ``fit(X, lengths=None, ...)`` (returning
+``self``) into attributes ending with ``_``, and saves to one documented file format. As in
+scikit-learn and hmmlearn, ``X`` holds the frames of all sequences concatenated and ``lengths`` their
+frame counts (``None``: one sequence). :class:`Estimator` derives ``get_params``, ``set_params`` and
+``repr`` from the ``__init__`` signature and owns the parts of ``save`` and ``load`` that every format
+shares: a model is written only once fitted, and a file is read only if its ``kind`` and
+``format_version`` are ones this estimator reads. Each estimator supplies the format itself
+(:meth:`Estimator._write`, :meth:`Estimator._read`, :meth:`Estimator._from_file`).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-from hoap_actions.errors import DataFileError, NotFittedError
+from hoap_actions.errors import DataFileError, InvalidInputError, NotFittedError
 
 __all__ = ["Estimator", "check_is_fitted", "file_params"]
 
@@ -40,10 +42,12 @@ def check_is_fitted(estimator: Estimator, attributes: str | Sequence[str] | None
 
 
 def file_params(estimator: Estimator) -> dict[str, Any]:
-    """``estimator.get_params()`` ready for a JSON file: numpy scalars as Python ones, and a Generator
-    ``random_state`` (which no file can hold) as ``None``."""
+    """``estimator.get_params()`` ready for a JSON file: numpy scalars as Python ones, a Generator
+    ``random_state`` (which no file can hold) as ``None``, and how it reports progress left out."""
     out = {}
     for name, value in estimator.get_params().items():
+        if name in estimator._unsaved_params:
+            continue
         if isinstance(value, np.random.Generator):
             value = None
         out[name] = value.item() if isinstance(value, np.generic) else value
@@ -62,6 +66,10 @@ class Estimator(ABC):
     _file_kind: ClassVar[str]
     _format_version: ClassVar[int]
     _readable_versions: ClassVar[tuple[int, ...]]
+    _refit_free_params: ClassVar[tuple[str, ...]] = ()
+    """Hyper-parameters a fitted estimator reads after ``fit`` and so takes new values of without a refit."""
+    _unsaved_params: ClassVar[tuple[str, ...]] = ()
+    """Hyper-parameters that change how ``fit`` reports, not what it learns: files leave them out."""
 
     @classmethod
     def _param_names(cls) -> list[str]:
@@ -72,6 +80,38 @@ class Estimator(ABC):
     def get_params(self) -> dict[str, Any]:
         """Hyper-parameters as given to ``__init__``: ``type(self)(**get_params())`` is an unfitted copy."""
         return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self: E, **params: Any) -> E:
+        """Set hyper-parameters and return ``self``; they are checked together, and on an error none changes.
+
+        An unfitted estimator takes any of its ``__init__`` parameters; a fitted one only those it reads
+        after fitting (:attr:`_refit_free_params`): the others would contradict what it learned.
+        """
+        names = self._param_names()
+        unknown = sorted(set(params) - set(names))
+        if unknown:
+            raise InvalidInputError(f"{type(self).__name__} has no hyper-parameter(s) {unknown}; it has {names}")
+        if all(hasattr(self, name) for name in self._learned):
+            need_fit = sorted(set(params) - set(self._refit_free_params))
+            if need_fit:
+                raise InvalidInputError(f"this {type(self).__name__} is fitted: it takes new values of "
+                                        f"{list(self._refit_free_params)} only; fit a new one to change {need_fit}")
+        previous = self.get_params()
+        self.__dict__.update(params)
+        try:
+            self._check_params()
+        except InvalidInputError:
+            self.__dict__.update(previous)
+            raise
+        self._params_changed(set(params))
+        return self
+
+    @abstractmethod
+    def _check_params(self) -> None:
+        """Raise InvalidInputError naming a hyper-parameter that is out of range and what is accepted."""
+
+    def _params_changed(self, names: set[str]) -> None:  # noqa: B027  (a hook: most estimators derive nothing)
+        """Forget what was derived from the hyper-parameters ``names`` that :meth:`set_params` changed."""
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.models.whole_actions import SIGNATURE_POINTS, action_level, run_signature, whole_runs
-from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.models.whole_actions import SIGNATURE_POINTS, action_level, run_signature, whole_runs
 
 
 def straight_run(heading: float, length: float = 0.1, lift: float = 0.0, frames: int = 60) -> np.ndarray:
@@ -45,10 +44,8 @@ def test_signature_refuses_bad_poses():
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    from hoap_actions.demonstration.recording import record
-
-    demos = load_demonstrations(record("small", tmp_path_factory.mktemp("d") / "small.h5", seed=0, progress=False))
+def small(small_demos):
+    demos = small_demos
     X, lengths = np.concatenate([e.O for e in demos]), [e.T for e in demos]
     H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
     return demos, PrimitiveDiscovery().fit(X, lengths, H), X, lengths

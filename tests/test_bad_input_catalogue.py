@@ -25,6 +25,7 @@ import pytest
 
 import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.apps.cli import main
+from hoap_actions.demonstration.datasets import load_demonstrations, write_demonstrations
 from hoap_actions.errors import (
     DataExistsError,
     DataFileError,
@@ -32,16 +33,16 @@ from hoap_actions.errors import (
     InvalidInputError,
 )
 from hoap_actions.outputs import PARTIAL_MARK, claimed_file, claimed_files
-from hoap_actions.demonstration.datasets import load_demonstrations, write_demonstrations
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
-from hoap_actions.primitives.pipelines.discover import OUTPUT_FILES, discover_to_dir
 from hoap_actions.primitives.hmm.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
+from hoap_actions.primitives.pipelines.discover import OUTPUT_FILES, discover_to_dir
 
 PEG = "hoap_actions/PegInsert-v0"
 SUBPROCESS_TIMEOUT = 120  # s
 
 
-def run_python(code: str, env: dict[str, str] | None = None, timeout: float = SUBPROCESS_TIMEOUT) -> subprocess.CompletedProcess:
+def run_python(code: str, env: dict[str, str] | None = None,
+               timeout: float = SUBPROCESS_TIMEOUT) -> subprocess.CompletedProcess:
     """Run ``code`` in a fresh interpreter; whatever PyBullet does there cannot end this one."""
     return subprocess.run(
         [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env, timeout=timeout
@@ -328,7 +329,9 @@ def test_row12_demo_refuses_fewer_than_one_episode(episodes, no_long_work, capsy
     [
         (["record", "--preset", "small", "--out", "x.h5", "--seed", "-1"], "a seed is an integer in 0.."),
         (["demo", "--seed", "-1"], "a seed is an integer in 0.."),
-        (["demo", "--seed", "9223372036854775807", "--episodes", "2"], "seeds 9223372036854775807..9223372036854775808 outside"),
+        (["demo", "--seed", "9223372036854775807", "--episodes", "2"], "seeds "
+                                                                       "9223372036854775807..9223372036854775808 "
+                                                                       "outside"),
         (["demo", "--env", "bogus/Env-v0"], "invalid choice: 'bogus/Env-v0' (choose from 'hoap_actions/PegInsert-v0'"),
         (["demo", "--env", "CartPole-v1"], "invalid choice: 'CartPole-v1'"),
     ],
@@ -491,11 +494,9 @@ def test_row11_synthesize_warns_far_outside_the_training_effects_and_names_their
 
 # ------------------------------------------------------------------- rows 16-18: dataset files
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
+def small(small_recording):
     """A recorded ``small`` preset dataset (4 episodes: approach, push, move, rotate)."""
-    from hoap_actions.demonstration.recording import record
-
-    return record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
+    return small_recording
 
 
 def edited_dataset(small, tmp_path, edit):
@@ -524,7 +525,8 @@ def test_row17_ground_truth_entries_of_the_wrong_shape_are_rejected_on_load(smal
     wrong = {"object_start": np.zeros(2), "object_end": np.zeros(7), "object_target": np.zeros((6, 1)),
              "hand_rest": np.zeros(2), "grid_index": np.zeros(3, dtype=np.int64)}
     for name, value in wrong.items():
-        path = edited_dataset(small, tmp_path, lambda f: replace(f, f"episode_00001/ground_truth/{name}", value))
+        path = edited_dataset(small, tmp_path,
+                              lambda f, name=name, value=value: replace(f, f"episode_00001/ground_truth/{name}", value))
         with pytest.raises(DataFileError, match=f"episode_00001: entry ground_truth/{name} has shape"):
             load_demonstrations(path)
     with pytest.raises(DataFileError, match="episode_00001: entry ground_truth/object_start"):

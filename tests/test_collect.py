@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import gymnasium
 import numpy as np
 import pytest
 
-import hoap_actions  # noqa: F401
+import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.apps.cli import main
 from hoap_actions.apps.collect import collect
 from hoap_actions.errors import HoapActionsError, InvalidInputError

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.models.connected_recognition import ChainedHMM, chain_classes, exit_probability
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.hmm.hmm_math import viterbi
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
+from hoap_actions.primitives.models.connected_recognition import ChainedHMM, chain_classes, exit_probability
 
 
 def random_chained(rng: np.random.Generator, sizes=(3, 2, 4), dim: int = 2) -> ChainedHMM:

@@ -9,7 +9,6 @@ import h5py
 import numpy as np
 import pytest
 
-from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError
 from hoap_actions.demonstration import datasets
 from hoap_actions.demonstration.datasets import (
     Demonstrations,
@@ -18,6 +17,7 @@ from hoap_actions.demonstration.datasets import (
     load_demonstrations,
     write_demonstrations,
 )
+from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError
 
 PHASES = ("approach", "push-left", "remove")
 MARKERS = ("shoulder", "elbow", "wrist", "index_tip", "index_knuckle", "thumb_tip")
@@ -308,7 +308,8 @@ def test_a_marker_half_missing_too_many_gaps_or_a_bad_noise_model_are_named(tmp_
     H = load_demonstrations(path)[2].H
     H[:, :2] = np.nan  # shoulder and elbow never seen: a third of the marker frames
     _replace(path, "episode_00002/H", H)
-    with pytest.raises(DataFileError, match="episode_00002: 33% of the marker frames are missing; accepted: at most 20%"):
+    with pytest.raises(DataFileError, match="episode_00002: 33% of the marker frames are missing; accepted: at most "
+                                            "20%"):
         load_demonstrations(path)
     path = write_demonstrations(tmp_path / "e.h5", with_gap(demos))
     with h5py.File(path, "r+") as f:

@@ -18,8 +18,8 @@ from hoap_actions.models.shipped import (
     load_default_models,
     sha256,
 )
-from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.models.action_models import ActionModels
 
 
 def test_shipped_files_are_the_ones_the_build_command_recorded():
@@ -46,10 +46,8 @@ def test_shipped_models_load_and_are_small():
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    from hoap_actions.demonstration.recording import record
-
-    return record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
+def small(small_recording):
+    return small_recording
 
 
 def test_recognize_without_models_uses_the_shipped_ones(small, tmp_path, capsys):

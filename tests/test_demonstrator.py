@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hoap_actions.demonstration.scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
-from hoap_actions.demonstration.tasks import DIRECTIONS, LABELS_VERSION, PHASE_NAMES, DemoTask
+from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.demonstration.demonstrator import MARKER_LINKS, PLACE_CLEARANCE, Demonstrator
 from hoap_actions.demonstration.minimum_jerk import minimum_jerk_curve
 from hoap_actions.demonstration.recording import GRIDS, preset_tasks, record
+from hoap_actions.demonstration.scene import ACTIVE_REGION_HIGH, ACTIVE_REGION_LOW, DemoScene, active_region_grid
+from hoap_actions.demonstration.tasks import DIRECTIONS, LABELS_VERSION, PHASE_NAMES, DemoTask
 from hoap_actions.envs.world import (
     HUMAN_TO_ROBOT_SCALE,
     WORK_AREA_HIGH,
@@ -22,7 +23,6 @@ from hoap_actions.envs.world import (
     robot_to_human,
 )
 from hoap_actions.errors import DataExistsError, InvalidInputError
-from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.primitives.evaluation.discovery import effect_visible_labels
 from hoap_actions.urdf import urdf_path
 
@@ -30,9 +30,8 @@ SHOULDER, ELBOW, WRIST, INDEX_TIP, KNUCKLE, THUMB_TIP = range(6)
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    path = record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
-    return load_demonstrations(path)
+def small(small_demos):
+    return small_demos
 
 
 def by_action(demos, action):

@@ -56,8 +56,8 @@ def test_a_taller_body_has_longer_trunk_and_arm_and_the_same_hand():
 
 @pytest.fixture(scope="module")
 def short_recording(tmp_path_factory):
-    from hoap_actions.demonstration.recording import record
     from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.demonstration.recording import record
 
     folder = tmp_path_factory.mktemp("demonstrators")
     reference = load_demonstrations(record("small", folder / "reference.h5", seed=1, progress=False))
@@ -81,8 +81,8 @@ def test_a_short_demonstrator_does_every_task_with_a_shorter_arm_and_is_named_in
 
 
 def test_the_demonstrator_and_the_scene_must_hold_the_same_body():
-    from hoap_actions.demonstration.scene import DemoScene
     from hoap_actions.demonstration.demonstrator import Demonstrator
+    from hoap_actions.demonstration.scene import DemoScene
 
     scene = DemoScene()
     try:

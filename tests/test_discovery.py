@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
-from hoap_actions.primitives.hmm import hmm_math
 from hoap_actions.primitives.discovery.estimator import (
     APPROACH,
     MANIPULATION,
@@ -17,11 +16,12 @@ from hoap_actions.primitives.discovery.estimator import (
     UNKNOWN,
     PrimitiveDiscovery,
 )
-from hoap_actions.primitives.evaluation.segmentation import boundary_f1
-from hoap_actions.primitives.hmm.gaussians import gaussian_kl, merge_gaussians, symmetric_kl_matrix
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
-from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
 from hoap_actions.primitives.discovery.substrings import find_primitives, longest_common_substring
+from hoap_actions.primitives.evaluation.segmentation import boundary_f1
+from hoap_actions.primitives.hmm import hmm_math
+from hoap_actions.primitives.hmm.gaussians import gaussian_kl, merge_gaussians, symmetric_kl_matrix
+from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
 
 DIRECTIONS = {"right": (1.0, 0.0), "left": (-1.0, 0.0), "up": (0.0, 1.0), "down": (0.0, -1.0)}
 DISTANCES = (0.04, 0.08, 0.12)  # 2, 4 and 6 spacings of 2 cm: the Fig. 7 P1 / P1 P2 / P1 P2 P3 case
@@ -536,7 +536,8 @@ def test_agglomerative_merging_gives_fig7_structure_whatever_the_order(pushes):
     keys, objects, hands, _, _ = pushes
     order = np.random.default_rng(5).permutation(len(objects))
     fitted = [PrimitiveDiscovery(**TWO_CM, merging="agglomerative").fit(
-        *stacked([objects[i] for i in o]), np.concatenate([hands[i] for i in o])) for o in (np.arange(len(objects)), order)]
+        *stacked([objects[i] for i in o]), np.concatenate([hands[i] for i in o]))
+        for o in (np.arange(len(objects)), order)]
     a, b = fitted
     np.testing.assert_array_equal(a.joint_means_, b.joint_means_)
     assert a.primitives_ == b.primitives_ and a.primitive_kinds_ == b.primitive_kinds_
@@ -544,7 +545,7 @@ def test_agglomerative_merging_gives_fig7_structure_whatever_the_order(pushes):
         assert b.segmentations_[k] == a.segmentations_[i]
     assert {(c.primitive_id, tuple(sorted((s.demo, s.start) for s in c.segments))) for c in a.classes_} == {
         (c.primitive_id, tuple(sorted((int(order[s.demo]), s.start) for s in c.segments))) for c in b.classes_}
-    for demo, (direction, distance) in enumerate(keys):
+    for demo, (_direction, distance) in enumerate(keys):
         chain = manipulation_ids(a, demo)
         assert len(chain) == DISTANCES.index(distance) + 1  # P1 / P1 P2 / P1 P2 P3, as the fold gives them
 

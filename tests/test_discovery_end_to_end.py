@@ -9,19 +9,18 @@ import numpy as np
 import pytest
 
 from hoap_actions.apps.cli import main
-from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
 from hoap_actions.demonstration.datasets import (
     Demonstrations,
     Episode,
     GroundTruth,
-    load_demonstrations,
     write_demonstrations,
 )
+from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputError, NotFittedError
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.discovery.groups import action_groups
 from hoap_actions.primitives.evaluation.discovery import effect_visible_labels, evaluate_discovery
 from hoap_actions.primitives.pipelines.discover import OUTPUT_FILES, discover_to_dir
-from hoap_actions.primitives.discovery.groups import action_groups
-from hoap_actions.primitives.discovery.grammar import ActionGrammar
 
 # Measured on the small preset (seed 0, labels_version 2: grasp in the approach, release in the remove):
 # many-to-one frame accuracy 0.879 with a ceiling of 0.887 for any method reading only O (the approach-only
@@ -38,11 +37,8 @@ def poses(demos) -> tuple[np.ndarray, list[int]]:
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    from hoap_actions.demonstration.recording import record
-
-    path = record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False)
-    return path, load_demonstrations(path)
+def small(small_recording, small_demos):
+    return small_recording, small_demos
 
 
 def test_small_preset_end_to_end_against_hidden_labels(small):

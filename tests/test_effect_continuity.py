@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.models.effect_continuity import effect_gap_scores
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.models.effect_continuity import effect_gap_scores
 
 
 def test_known_gaps():
@@ -30,7 +30,8 @@ def test_classes_without_an_estimate_are_left_out():
 def test_gaps_pick_the_pieces_whose_effects_join_up():
     """Two pieces that look alike to their models: the grammar allows 1 -> 2 and 1 -> 3, the segment
     scores prefer 3 slightly, but only piece 2's initial location continues where piece 1 ended."""
-    grammar = ActionGrammar().fit([["approach", "push-1", "push-2", "remove"], ["approach", "push-1", "push-3", "remove"]])
+    grammar = ActionGrammar().fit([["approach", "push-1", "push-2", "remove"],
+                                   ["approach", "push-1", "push-3", "remove"]])
     scores = [{"approach": 0.0}, {"push-1": 0.0}, {"push-2": -2.0, "push-3": 0.0}, {"remove": 0.0}]
     assert grammar.decode(scores)[0][2] == "push-3"
     ends = {"push-1": np.array([0.20, 0.05, 0.02])}

@@ -6,7 +6,7 @@ import gymnasium
 import numpy as np
 import pytest
 
-import hoap_actions  # noqa: F401
+import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.errors import InvalidInputError
 
 

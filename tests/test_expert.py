@@ -13,10 +13,10 @@ import gymnasium
 import numpy as np
 import pytest
 
-from hoap_actions.policies.registry import policy_class
-from hoap_actions.policies.scripted_expert import ScriptedExpert, footprint_clearance, thumb_outline
 from hoap_actions.apps.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.registry import policy_class
+from hoap_actions.policies.scripted_expert import ScriptedExpert, footprint_clearance, thumb_outline
 
 FAILURE_REASONS = {"unreachable layout", "grasp slipped", "peg knocked over", "approach blocked", "timeout",
                    "finished without success"}
@@ -55,7 +55,8 @@ def test_expert_on_100_unseen_layouts(env):
 def test_policies_are_found_by_name_with_their_control_mode():
     assert policy_class("scripted") is ScriptedExpert and ScriptedExpert.control_mode == "ee_delta"
     assert policy_class("random").control_mode == "joint_delta"
-    with pytest.raises(InvalidInputError, match=r"unknown policy 'nope'; accepted: \['phmm', 'random', 'scripted', 'straight'\]"):
+    with pytest.raises(InvalidInputError,
+                       match=r"unknown policy 'nope'; accepted: \['phmm', 'random', 'scripted', 'straight'\]"):
         policy_class("nope")
 
 

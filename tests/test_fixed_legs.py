@@ -11,14 +11,14 @@ from gymnasium.utils.env_checker import check_env
 from scipy.spatial.transform import Rotation
 
 import hoap_actions  # noqa: F401  (registers the envs)
+from hoap_actions.apps.episodes import run_episode
 from hoap_actions.controllers.hand_control import rest_posture
-from hoap_actions.policies.scripted_expert import ScriptedExpert
 from hoap_actions.controllers.wholebody_ik import WholeBodyIK
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import Sim
-from hoap_actions.apps.episodes import run_episode
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.scripted_expert import ScriptedExpert
 from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS
 
 FRAMES = ("r_tcp", "l_tcp", "camera", "r_sole", "l_sole", "r_shoulder_pitch_link", "trunk")
@@ -130,7 +130,8 @@ def test_legs_never_move_nor_touch_anything_and_it_never_falls(env):
         obs, _, terminated, _, info = env.step(rng.uniform(-1, 1, 7))
         fields = env.unwrapped.parse_observation(obs)
         assert not info["fallen"]
-        np.testing.assert_array_equal(fields["joint_positions"][legs], env.unwrapped.robot.lower[legs].astype(np.float32))
+        np.testing.assert_array_equal(fields["joint_positions"][legs],
+                                      env.unwrapped.robot.lower[legs].astype(np.float32))
         np.testing.assert_array_equal(fields["joint_velocities"][legs], 0.0)
         np.testing.assert_allclose(fields["base_position"], base, atol=1e-9)
         touching = {c["link_a"] for c in sim.contacts("robot")} & leg_links

@@ -185,7 +185,7 @@ def test_decode_with_pair_scores_agrees_with_brute_force():
         pairs = [{(a, b): rng.normal(0.0, 3.0) for a in symbols for b in symbols if rng.random() < 0.7}
                  for _ in range(length - 1)]
 
-        def total(seq):
+        def total(seq, scores=scores, pairs=pairs):
             return (grammar.log_probability(seq) + sum(s[c] for s, c in zip(scores, seq))
                     + sum(p.get((a, b), 0.0) for p, a, b in zip(pairs, seq, seq[1:])))
 
@@ -257,8 +257,8 @@ def test_decode_unexplained_penalty_keeps_the_grammatical_path_through_an_unexpl
     grammar = ActionGrammar().fit(PIECES + [["approach", "move", "remove"]])
     first, last = {"approach": 0.0}, {"remove": 0.0}
     # the second push piece is too short for its own model (-inf); the move explains it, poorly
-    scores = [first, {"push-1": -5.0, "move": -20.0}, {"push-2": -np.inf, "move": -30.0}, {"push-3": -5.0, "move": -40.0},
-              last]
+    scores = [first, {"push-1": -5.0, "move": -20.0}, {"push-2": -np.inf, "move": -30.0},
+              {"push-3": -5.0, "move": -40.0}, last]
     with pytest.raises(InvalidInputError, match="smoothing > 0"):
         grammar.decode(scores)  # no grammatical path has only finite scores: one move covers 3 segments nowhere
     decoded, total = grammar.decode(scores, unexplained_penalty=10.0)

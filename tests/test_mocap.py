@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.demonstration.mocap import NOISE_MODELS, MocapNoise, add_mocap_noise, parse_noise
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.primitives.pipelines.mocap_cleaning import (
     NoiseAboveDeclaredWarning,
     clean_demonstrations,

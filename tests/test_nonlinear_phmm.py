@@ -7,8 +7,8 @@ import warnings
 
 import numpy as np
 import pytest
-
 from em_checks import assert_objective_rises
+
 from hoap_actions.errors import DataFileError, ExtrapolationWarning, IdentifiabilityError, InvalidInputError
 from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures, effect_groups
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
@@ -124,7 +124,7 @@ def test_estimate_phi_finds_a_known_effect_of_a_known_nonlinear_model(tps):
     on them; the same model without its bend (V = 0) misses them."""
     rng = np.random.default_rng(7)
     truths = np.array([[-0.55, 0.35], [0.25, -0.65], [0.7, 0.1]])
-    model_means = lambda phi: tps._means_at(phi[None], np.zeros(D))[0]  # noqa: E731
+    model_means = lambda phi: tps._means_at(phi[None], np.zeros(D))[0]  # noqa: E731  (a one-line local function)
     _, _, _, seqs = sequences(rng, truths, repetitions=1, means=model_means)
     straight = ParametricHMM.__new__(ParametricHMM)
     straight.__dict__.update(tps.__dict__, V_=np.zeros_like(tps.V_))

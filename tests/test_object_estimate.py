@@ -60,7 +60,8 @@ def test_the_estimated_object_follows_the_hand_and_rests_outside_the_manipulatio
     (lambda H: object_poses(H, NAMES, 50, 50, OFFSET), "start < end"),
     (lambda H: object_poses(H, NAMES, 0, len(H) + 1, OFFSET), "within the 120 frames"),
     (lambda H: fit_grasp_offset([], NAMES), "no manipulation frames"),
-], ids=["marker-missing", "wrong-shape", "degenerate-hand", "nan-marker", "nan-offset", "short-offset", "empty-span", "span-too-long", "no-frames"])
+], ids=["marker-missing", "wrong-shape", "degenerate-hand", "nan-marker", "nan-offset", "short-offset", "empty-span",
+        "span-too-long", "no-frames"])
 def test_bad_input_is_refused_with_what_is_accepted(call, message):
     with pytest.raises(InvalidInputError, match=message):
         call(carried()[0])

@@ -8,8 +8,8 @@ import pytest
 import ray
 
 from hoap_actions.apps.cli import main
-from hoap_actions.demonstration.recording import record
 from hoap_actions.apps.episodes import compare_policies, summarise
+from hoap_actions.demonstration.recording import record
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.parallel import check_ray_address, ordered_map
 

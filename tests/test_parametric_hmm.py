@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from em_checks import assert_objective_rises
+
 from hoap_actions.errors import (
     DataExistsError,
     DataFileError,
@@ -263,7 +263,8 @@ def test_save_load_round_trip(model, data, tmp_path):
     assert loaded.score(x, phis[0]) == model.score(x, phis[0])
     np.testing.assert_allclose(loaded.synthesize(phis[1]), model.synthesize(phis[1]), rtol=1e-14)
     with np.load(path, allow_pickle=False) as raw:
-        assert int(raw["format_version"]) == 3 and str(raw["topology"]) == "left-right"
+        assert int(raw["format_version"]) == 4 and str(raw["topology"]) == "left-right"
+        assert "train_phi_" in raw.files and "train_params_" not in raw.files  # saved under its own name
         assert str(raw["mean_model"]) == "linear" and raw["V_"].shape == (K, D, 0)
         assert raw["covars_prior"].shape == (0,)
 
@@ -282,6 +283,7 @@ def test_save_load_keeps_the_covariance_prior_and_reads_version_1_files(data, tm
     with np.load(tmp_path / "prior.npz", allow_pickle=False) as raw:
         old = {key: raw[key] for key in raw.files if key not in ("covars_prior", "covars_weight")}
     old["format_version"] = np.array(1)
+    old["train_params_"] = old.pop("train_phi_")  # its name in files before version 4
     np.savez(tmp_path / "v1.npz", **old)
     v1 = ParametricHMM.load(tmp_path / "v1.npz")
     assert v1.covars_prior is None and v1.covars_weight == 1.0
@@ -308,8 +310,8 @@ def test_load_rejects_bad_files(model, tmp_path):
     model.save(good)
     with np.load(good) as raw:
         arrays = dict(raw)
-    np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(4)})
-    with pytest.raises(DataFileError, match="format_version 4"):
+    np.savez(tmp_path / "future.npz", **{**arrays, "format_version": np.array(5)})
+    with pytest.raises(DataFileError, match="format_version 5"):
         ParametricHMM.load(tmp_path / "future.npz")
     np.savez(tmp_path / "bad_prior.npz", **{**arrays, "covars_prior": np.ones(D + 1)})
     with pytest.raises(DataFileError, match="covars_prior"):

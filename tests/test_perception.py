@@ -7,12 +7,13 @@ import math
 from dataclasses import replace
 
 import gymnasium
-import hoap_actions  # noqa: F401 - registers the envs
 import numpy as np
 import pytest
-from hoap_actions.vision.perception import backproject, locate
+
+import hoap_actions  # noqa: F401 - registers the envs
 from hoap_actions.envs import scene as scene_module
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.vision.perception import backproject, locate
 
 PEG_BOUND = 0.002  # m, the max centre error
 HOLE_BOUND = 0.002  # m

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hoap_actions.demonstration.demonstrator import Demonstrator
 from hoap_actions.demonstration.scene import DemoScene
 from hoap_actions.demonstration.tasks import PHASE_NAMES, DemoTask
-from hoap_actions.demonstration.demonstrator import Demonstrator
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 from hoap_actions.primitives.hmm.phmm_recognition import recognize
 from hoap_actions.primitives.trajectory_metrics import dtw_average, warped_rms_error

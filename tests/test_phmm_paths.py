@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from hoap_actions.controllers.hand_control import HAND_LIMITS
-from hoap_actions.policies.phmm_paths import PHMMPaths, SceneMap, carry_action, over_the_table, warp
-from hoap_actions.models.shipped import load_default_models
 from hoap_actions.envs import scene, world
+from hoap_actions.models.shipped import load_default_models
+from hoap_actions.policies.phmm_paths import PHMMPaths, SceneMap, carry_action, over_the_table, warp
 from hoap_actions.primitives.discovery.estimator import MANIPULATION
 
 

@@ -6,10 +6,10 @@ import gymnasium
 import numpy as np
 import pytest
 
-import hoap_actions  # noqa: F401
-from hoap_actions.policies.phmm_policy import PHMMPolicy
+import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.apps.episodes import compare_policies, run_episode, wilson_interval
 from hoap_actions.errors import HoapActionsError, InvalidInputError
+from hoap_actions.policies.phmm_policy import PHMMPolicy
 
 LAYOUTS = (1, 2)  # development seeds (0-99); the held-out figure uses 30000-30199
 

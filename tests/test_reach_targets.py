@@ -6,7 +6,7 @@ import gymnasium
 import numpy as np
 import pytest
 
-import hoap_actions  # noqa: F401
+import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.envs import scene
 from hoap_actions.envs.tasks.reach import HAND_DEPTH, HAND_REACH, hand_fits
 
@@ -20,7 +20,8 @@ LAYOUT = scene.DEFAULT_LAYOUT  # board centred at (0.03, 0), unrotated; pegs at 
     ((-0.03 - scene.PEG_RADIUS - HAND_REACH - 0.001, 0.0, 0.03), True),  # beside it, clear of every outline
     ((0.03, 0.0, 0.04), False),                                          # low over the board
     ((0.03, 0.0, scene.BOARD_SIZE[2] + HAND_DEPTH + 0.001), True),
-    ((0.03 - scene.BOARD_SIZE[0] / 2 - HAND_REACH + 0.001, 0.03, 0.04), False),  # the hand would be over the board's edge
+    # the hand would be over the board's edge
+    ((0.03 - scene.BOARD_SIZE[0] / 2 - HAND_REACH + 0.001, 0.03, 0.04), False),
 ])
 def test_known_targets(target, fits):
     assert hand_fits(np.array(target), LAYOUT) is fits

@@ -6,7 +6,7 @@ import gymnasium
 import imageio.v3 as iio
 import pytest
 
-import hoap_actions  # noqa: F401
+import hoap_actions  # noqa: F401  (registers the environments)
 
 pytest.importorskip("moviepy")
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from matplotlib.path import Path
 import pytest
+from matplotlib.path import Path
 
 from hoap_actions.envs import world
 from hoap_actions.envs.scene import (

@@ -56,7 +56,8 @@ def test_soak_10000_steps(control_mode, kind):
         if step == WARM_UP:
             baseline = _resident_mb()
         obs, _, terminated, truncated, info = env.step(_action(kind, rng, env.action_space.shape))
-        assert all(np.all(np.isfinite(value)) for value in obs.values()), f"NaN or inf in the observation at step {step}"
+        assert all(np.all(np.isfinite(value)) for value in obs.values()), (
+            f"NaN or inf in the observation at step {step}")
         fastest = max(fastest, float(np.max(np.abs(obs["observation"][VELOCITIES]) / limits)))
         if info["fallen"]:
             falls.append(step)

@@ -9,9 +9,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import world
-from hoap_actions.errors import InvalidInputError
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import Sim
+from hoap_actions.errors import InvalidInputError
 
 CONTROL_EVERY = 8  # physics steps per command: 30 Hz, as the environments act
 

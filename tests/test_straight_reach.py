@@ -6,10 +6,10 @@ import gymnasium
 import numpy as np
 import pytest
 
-import hoap_actions  # noqa: F401
-from hoap_actions.policies.registry import StraightReach, policy_class
+import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.envs.controls import MAX_HAND_STEP
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.registry import StraightReach, policy_class
 
 
 def test_action_is_the_clipped_step_towards_the_target_with_the_gripper_open():
@@ -22,7 +22,7 @@ def test_action_is_the_clipped_step_towards_the_target_with_the_gripper_open():
 
 
 def test_it_reaches_most_targets_and_never_falls():
-    """It reaches 94 % of the validation layouts (benchmarks/results/NOTES.md): at least two of layouts 0-2 within
+    """It reaches 94 % of the validation layouts (docs/experiments/rl.md): at least two of layouts 0-2 within
     1 cm; never a fall."""
     env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta")
     policy = StraightReach(env)

@@ -8,17 +8,17 @@ import json
 import numpy as np
 import pytest
 
-from hoap_actions.models.shipped import load_default_models
+from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.demonstration.recording import record
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.demonstration.datasets import load_demonstrations
-from hoap_actions.vision.body_model import BodyModel
+from hoap_actions.models.shipped import load_default_models
 from hoap_actions.tracking import track_episode, track_markers_episode, tracking_video_frames
+from hoap_actions.vision.body_model import BodyModel
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    return load_demonstrations(record("small", tmp_path_factory.mktemp("demos") / "small.h5", seed=0, progress=False))
+def small(small_demos):
+    return small_demos
 
 
 def test_tracks_an_episode_from_rendered_frames(small):
@@ -169,7 +169,7 @@ def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):
         path = path.reshape(len(path), -1, 3)
         d = np.linalg.norm(path[None] - H[start:end, None], axis=3)
         dense = d[np.arange(end - start), np.argmin(np.mean(d**2, axis=2), axis=1)]
-        rms = lambda x: np.sqrt(np.mean(x**2, axis=1))  # noqa: E731
+        rms = lambda x: np.sqrt(np.mean(x**2, axis=1))  # noqa: E731  (a one-line local function)
         assert np.max(np.abs(rms(floor[start:end]) - rms(dense))) < 0.002  # the same polyline, sampled apart
         assert np.mean(fitted[start:end] ** 2) <= np.mean(floor[start:end] ** 2)  # a fitted effect never does worse
         improved += np.mean(fitted[start:end] ** 2) < np.mean(floor[start:end] ** 2)

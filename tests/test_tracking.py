@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hoap_actions.models.shipped import load_default_models
 from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.models.shipped import load_default_models
 from hoap_actions.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker, mean_poses
 from hoap_actions.vision.body_model import BodyModel, Capsule
 from hoap_actions.vision.edges import edge_image

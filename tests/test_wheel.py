@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
 import sysconfig
+import tomllib
 import venv
 import zipfile
 from pathlib import Path
@@ -45,7 +47,8 @@ def wheel(tmp_path_factory) -> Path:
     )
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(out), str(src / "repo")],
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(out),
+         str(src / "repo")],
         check=True,
     )
     (whl,) = out.glob("hoap_actions-*.whl")
@@ -59,8 +62,9 @@ def test_wheel_holds_only_the_hoap_actions_package(wheel):
     assert all(t == "hoap_actions" or t.endswith(".dist-info") for t in top_levels), top_levels
     repo_urdfs = {p.name for p in (REPO / "urdf").glob("*.urdf")}
     assert repo_urdfs and {f"hoap_actions/urdf/{u}" for u in repo_urdfs} <= set(names)
-    for sub in ("envs", "primitives", "controllers", "models"):
-        assert f"hoap_actions/{sub}/__init__.py" in names
+    packages = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    for package in packages:  # every folder the package maps, nested under hoap_actions/
+        assert package.replace(".", "/") + "/__init__.py" in names, package
     shipped = {p.name for p in (REPO / "models" / "paper").iterdir()}
     assert shipped and {f"hoap_actions/models/paper/{n}" for n in shipped} <= set(names)  # the default models
 
@@ -77,8 +81,9 @@ def test_installed_wheel_loads_every_urdf_and_env(wheel, tmp_path):
     outer = sysconfig.get_paths()["purelib"]
     (Path(new_site) / "deps.pth").write_text(f"import site; site.addsitedir({outer!r})\n")
     subprocess.run([python, "-m", "pip", "install", "--no-deps", "--force-reinstall", "-q", str(wheel)], check=True)
+    clean = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # only the wheel may provide hoap_actions
     result = subprocess.run(
-        [python, "-c", CHECK_INSTALLED_COPY], cwd=tmp_path, capture_output=True, text=True, check=True
+        [python, "-c", CHECK_INSTALLED_COPY], cwd=tmp_path, capture_output=True, text=True, check=True, env=clean
     )
     shipped = result.stdout.split("URDFS ")[-1].strip().split(",")
     assert sorted(shipped) == sorted(p.name for p in (REPO / "urdf").glob("*.urdf"))

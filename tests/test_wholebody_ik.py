@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import gymnasium
 import numpy as np
 import pytest
@@ -222,19 +220,6 @@ def test_probe_leaves_the_ik_state_untouched(standing):
     probe = hand.ik.probe(np.array([0.0, 0.0, 0.06]))
     assert probe.error < 1e-3
     np.testing.assert_array_equal(hand.ik.q, before)
-
-
-def test_one_solve_takes_well_under_a_millisecond(standing):
-    sim, robot, hand, state = standing
-    sim.restore_state(state)
-    hand.reset()
-    target = robot.frame_pose("r_tcp")[0]
-    times = []
-    for k in range(400):
-        start = time.perf_counter()
-        hand.ik.solve(target + 0.02 * np.array([np.sin(k / 40), np.cos(k / 50) - 1.0, 0.0]))
-        times.append(time.perf_counter() - start)
-    assert np.median(times) < 5e-4  # ~60 us measured; generous for loaded CI machines
 
 
 def test_ee_delta_env_passes_the_gymnasium_checker():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import hoap_actions  # noqa: F401
+import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.envs.wrappers import SelectObservation
 from hoap_actions.errors import InvalidInputError
 
@@ -76,8 +76,8 @@ def test_bad_fields_name_the_accepted_ones(reach, fields):
 
 # ------------------------------------------------------------------------------------------ residual actions
 def test_a_zero_residual_replays_the_base_policy_bit_for_bit():
-    from hoap_actions.policies.registry import StraightReach
     from hoap_actions.envs.wrappers import ResidualAction
+    from hoap_actions.policies.registry import StraightReach
 
     traces = []
     for residual in (False, True):

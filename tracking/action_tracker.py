@@ -52,16 +52,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
+from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
 
 __all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]
 
 # sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen with the silhouette term
-# on a validation recording, benchmarks/results/NOTES.md): sharper, the particles agree on a goal before
+# on a validation recording, docs/experiments/tracking.md): sharper, the particles agree on a goal before
 # the arm shows it
 OBSERVATION_SIGMA = 0.8
 END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
@@ -73,15 +73,19 @@ LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validat
 LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
-OBJECT_MOVING_M = 0.01  # m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
-OBJECT_STILL_M = 0.003  # m, the same for a block at rest: the locator's jitter (median 0, 90 % below 3-4 mm on validation)
-OBJECT_END_SPREAD_M = 0.045  # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
+# m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
+OBJECT_MOVING_M = 0.01
+# m, the same for a block at rest: the locator's jitter (median 0, 90 % below 3-4 mm on validation)
+OBJECT_STILL_M = 0.003
+# m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
+OBJECT_END_SPREAD_M = 0.045
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
 FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
 OBJECT_MOTION_FRAMES = 5  # frames over which the object's seen displacement is measured
-OBJECT_OUTLIER_SHARE = 0.1  # share of that displacement's density uniform over OBJECT_MOTION_RANGE_M (a mislocated block)
+# share of that displacement's density uniform over OBJECT_MOTION_RANGE_M (a mislocated block)
+OBJECT_OUTLIER_SHARE = 0.1
 OBJECT_MOTION_RANGE_M = 0.3  # m, the uniform's range: about the table region the block moves in
 MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
 # collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
@@ -152,28 +156,40 @@ class TrackedFrame:
 class ActionTracker:
     """Track a demonstrator in edge images with the learned action models (see the module docstring).
 
-    Args:
-        models: fitted :class:`ActionModels` (their class PHMMs, grammar and markers).
-        body: the :class:`BodyModel` that turns markers into a contour.
-        cameras: one or more :class:`~hoap_actions.vision.body_model.Projector` cameras, one
-            edge image (and, optionally, one foreground mask) each.
-        n_particles: particles (the paper used 400).
-        observation_sigma, end_diffusion_m: eq. (8)'s sigma; the end's Brownian step (m per frame).
-        silhouette_sigma: the silhouette term's sigma, used when :meth:`step` is given foreground masks.
-        object_still_m, object_moving_m: scales of the object's seen displacement for classes that leave it at
-            rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
-            the term off.
-        random_state: seed of the filter's draws.
+    Parameters
+    ----------
+    models
+        fitted :class:`ActionModels` (their class PHMMs, grammar and markers).
+    body
+        the :class:`BodyModel` that turns markers into a contour.
+    cameras
+        one or more :class:`~hoap_actions.vision.body_model.Projector` cameras, one
+        edge image (and, optionally, one foreground mask) each.
+    n_particles
+        particles (the paper used 400).
+    observation_sigma, end_diffusion_m
+        eq. (8)'s sigma; the end's Brownian step (m per frame).
+    silhouette_sigma
+        the silhouette term's sigma, used when :meth:`step` is given foreground masks.
+    object_still_m, object_moving_m
+        scales of the object's seen displacement for classes that leave it at
+        rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
+        the term off.
+    random_state
+        seed of the filter's draws.
 
-    Attributes:
-        hand_from_object: (3,) m, where an approach ends relative to the block (x, y; z is the end's height),
-            learned from the models' training effects; used when :meth:`step` is told where the block is.
+    Attributes
+    ----------
+    hand_from_object
+        (3,) m, where an approach ends relative to the block (x, y; z is the end's height),
+        learned from the models' training effects; used when :meth:`step` is told where the block is.
     """
 
     def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
-                 n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA, end_diffusion_m: float = END_DIFFUSION_M,
-                 silhouette_sigma: float = SILHOUETTE_SIGMA, object_still_m: float | None = OBJECT_STILL_M,
-                 object_moving_m: float = OBJECT_MOVING_M, random_state: int | np.random.Generator | None = None) -> None:
+                 n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA,
+                 end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
+                 object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
+                 random_state: int | np.random.Generator | None = None) -> None:
         check_is_fitted(models)
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
             raise InvalidInputError(f"n_particles must be an int >= 1; got {n_particles!r}")
@@ -309,7 +325,8 @@ class ActionTracker:
         block), divided by the window's length: the windows overlap, so each frame's motion is seen that many
         times. 0 when the object was not seen at both ends or the term is off."""
         now, before = self._object_track[-1], self._object_track[0]
-        if self.object_still_m is None or now is None or before is None or len(self._object_track) <= OBJECT_MOTION_FRAMES:
+        if (self.object_still_m is None or now is None or before is None
+                or len(self._object_track) <= OBJECT_MOTION_FRAMES):
             return np.zeros(self.n_particles)
         moved = float(np.linalg.norm(now - before))
 
@@ -430,14 +447,16 @@ class ActionTracker:
 
     def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
         """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
-        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`, unchecked), plus its offset."""
+        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`, unchecked),
+        plus its offset."""
         particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
         out = np.empty((particles.size, self._n_markers, 3))
         for cid in np.unique(self.class_id[particles]):
             rows = np.flatnonzero(self.class_id[particles] == cid)
             chosen = particles[rows]
             phi = np.hstack([self.start[chosen], self.end[chosen]])
-            pose = _mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers) + self.offset[chosen]
+            pose = (_mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers)
+                    + self.offset[chosen])
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
@@ -457,7 +476,8 @@ class ActionTracker:
 
     @staticmethod
     def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector) -> np.ndarray:
-        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): 0 off the image, NaN for NaN (hidden) pixels."""
+        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): 0 off the image, NaN for NaN
+        (hidden) pixels."""
         hidden = ~np.isfinite(pixels).all(axis=-1)
         u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
         v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)

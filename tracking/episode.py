@@ -16,13 +16,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
+from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
 from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.primitives.discovery.estimator import UNKNOWN, effect_track
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame, mean_poses
 from hoap_actions.vision.body_model import BodyModel
@@ -30,7 +30,8 @@ from hoap_actions.vision.edges import edge_image
 from hoap_actions.vision.objects import ObjectLocator
 from hoap_actions.vision.silhouette import BackgroundSubtractor
 
-__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "pose_floor", "side_cameras", "track_episode", "track_markers_episode", "tracking_video_frames"]
+__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "pose_floor", "side_cameras", "track_episode",
+           "track_markers_episode", "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
@@ -202,7 +203,8 @@ def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_ef
         states = np.linspace(0.0, model.phmm.n_states - 1, phases)
         observed = ep.H[start:end]
 
-        def distances(phi: np.ndarray) -> np.ndarray:
+        def distances(phi: np.ndarray, model=model, states=states, observed=observed) -> np.ndarray:
+            # this iteration's model, states and frames bound now (it is only called within the iteration)
             poses = mean_poses(model, states, np.tile(phi, (phases, 1)), n_markers).reshape(phases, n_markers, 3)
             d = np.linalg.norm(poses[None] - observed[:, None], axis=3)  # (frames, phases, M)
             return d[np.arange(len(observed)), np.argmin(np.mean(d**2, axis=2), axis=1)]
@@ -213,7 +215,8 @@ def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_ef
         if fit_effect and model.basis.shape[1]:
             reduced = (phi - model.centre) @ model.basis
             outside = phi - model.centre - reduced @ model.basis.T  # the part of phi the class never varied
-            fitted = minimize(lambda r: float(np.mean(distances(model.centre + r @ model.basis.T + outside) ** 2)),
+            fitted = minimize(lambda r, model=model, outside=outside:
+                              float(np.mean(distances(model.centre + r @ model.basis.T + outside) ** 2)),
                               reduced, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-7, "maxiter": 300})
             candidate = distances(model.centre + fitted.x @ model.basis.T + outside)
             best = candidate if np.mean(candidate**2) < np.mean(best**2) else best

@@ -129,7 +129,8 @@ def fixed_legs(links: list, joints: list) -> tuple[list, list]:
         welded(jt, standing_leg_angle(jt["name"])) if jt["name"] in leg_joint_names else jt for jt in joints
     ]
     links = [
-        lk | {"shapes": [s | {"collide": False} for s in lk["shapes"]], "friction": None} if lk["name"] in leg_links else lk
+        lk | {"shapes": [s | {"collide": False} for s in lk["shapes"]], "friction": None}
+        if lk["name"] in leg_links else lk
         for lk in links
     ]
     return links, joints

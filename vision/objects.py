@@ -21,7 +21,8 @@ __all__ = ["ObjectLocator"]
 # The demonstration block (demo_object.urdf, RGB 0.85 0.25 0.20) in OpenCV's HSV (hue 0-180): rendered at hue
 # 0-6 and saturation 190-200; the skin of the hands and head is at hue 12, saturation 85, the wooden table at
 # hue 16, saturation 106 (demonstration camera, validation recording).
-BLOCK_HSV_RANGES = (((0, 150, 60), (8, 255, 255)), ((172, 150, 60), (180, 255, 255)))  # (low, high); red wraps round hue 0
+# (low, high); red wraps round hue 0
+BLOCK_HSV_RANGES = (((0, 150, 60), (8, 255, 255)), ((172, 150, 60), (180, 255, 255)))
 MIN_BLOB_PX = 6  # a 5 cm block is about 190 px at 320 x 240; fewer than this is noise or a sliver behind the hand
 PLANE_GRID_M = 0.5  # m, half-size of the square of plane points the homography is fitted on
 
@@ -29,11 +30,15 @@ PLANE_GRID_M = 0.5  # m, half-size of the square of plane points the homography 
 class ObjectLocator:
     """The block's centre (m, scene frame) from one camera image, or None when it is not seen.
 
-    Args:
-        camera: the camera the images come from.
-        plane_z: height (m) of the block's centre; the blob's centroid is taken onto this plane (a
-            homography: exact for a pinhole camera).
-        hsv_ranges: (low, high) OpenCV HSV bounds of the block's colour, any of which counts.
+    Parameters
+    ----------
+    camera
+        the camera the images come from.
+    plane_z
+        height (m) of the block's centre; the blob's centroid is taken onto this plane (a
+        homography: exact for a pinhole camera).
+    hsv_ranges
+        (low, high) OpenCV HSV bounds of the block's colour, any of which counts.
     """
 
     def __init__(self, camera: Projector, plane_z: float,

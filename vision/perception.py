@@ -33,10 +33,11 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
+
 from hoap_actions.envs import scene, world
 from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
-from scipy.optimize import least_squares
 
 PEG_COLOURS_RGB: dict[str, np.ndarray] = {name: np.array(rgba[:3]) for name, rgba in scene.PEG_COLOURS.items()}
 MIN_PEG_SATURATION = 0.45  # HSV saturation (0..1) of a peg pixel: the table (0.31), board and robot are duller

@@ -34,7 +34,8 @@ class PegInsertTask(Task):
         super().__init__(sim, robot, scene)
         for label, value, count in (("peg", peg, scene.n_pegs), ("hole", hole, scene_module.N_HOLES)):
             if value is not None and not (isinstance(value, (int, np.integer)) and 0 <= value < count):
-                raise InvalidInputError(f"{label}={value!r}; accepted: None (drawn at reset) or an int in 0..{count - 1}")
+                raise InvalidInputError(f"{label}={value!r}; accepted: None (drawn at reset) or an int in "
+                                        f"0..{count - 1}")
         self._fixed_peg, self._fixed_hole = peg, hole
 
     def reset(self, rng: np.random.Generator) -> None:

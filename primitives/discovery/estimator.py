@@ -37,28 +37,28 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.hmm import hmm_math
 from hoap_actions.primitives.base import Estimator, check_is_fitted
-from hoap_actions.primitives.hmm.gaussians import merge_gaussians, symmetric_kl_matrix
-from hoap_actions.primitives.json_files import JsonModelFile
-from hoap_actions.primitives.labels import runs
-from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
-from hoap_actions.primitives.discovery.state_clustering import cluster_pieces
-from hoap_actions.primitives.discovery.substrings import find_primitives
 from hoap_actions.primitives.discovery.discovery_file import discovery_from_document, write_discovery
 from hoap_actions.primitives.discovery.primitive_classes import (
     APPROACH,
     MANIPULATION,
+    N_MARKERS,
     OBJECT_DIM,
     REMOVE,
     UNKNOWN,
-    N_MARKERS,
     PrimitiveClass,
     Segment,
     effect_track,
     split_demonstrations,
     xyz,
 )
+from hoap_actions.primitives.discovery.state_clustering import cluster_pieces
+from hoap_actions.primitives.discovery.substrings import find_primitives
+from hoap_actions.primitives.hmm import hmm_math
+from hoap_actions.primitives.hmm.gaussians import merge_gaussians, symmetric_kl_matrix
+from hoap_actions.primitives.hmm.sparse_viterbi import sparse_viterbi
+from hoap_actions.primitives.json_files import JsonModelFile
+from hoap_actions.primitives.labels import runs
 
 __all__ = ["APPROACH", "MANIPULATION", "MERGINGS", "REMOVE", "UNKNOWN", "PrimitiveClass", "PrimitiveDiscovery",
            "Segment", "canonical_order", "effect_track"]
@@ -169,7 +169,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         """The ``reg_covar`` in use (m^2): as given, or ``spacing**2 / 48`` when it is ``None``."""
         return self.spacing**2 / 48.0 if self.reg_covar is None else self.reg_covar
 
-    def _check_hyper_parameters(self) -> None:
+    def _check_params(self) -> None:
         for name in ("spacing", "threshold", "reg_covar", "rotation_radius"):
             value = getattr(self, name)
             if name == "reg_covar" and value is None:
@@ -183,7 +183,8 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
 
     # -- fit
 
-    def fit(self, X: np.ndarray, lengths: Sequence[int], H: np.ndarray | None = None) -> PrimitiveDiscovery:
+    def fit(self, X: np.ndarray, lengths: Sequence[int] | None = None,
+            H: np.ndarray | None = None) -> PrimitiveDiscovery:
         """Learn the joint HMM, the primitives and their equivalence classes.
 
         ``X``: the demonstrations' raw object poses concatenated, ``(N, 6)`` = position (m) + rotation
@@ -197,7 +198,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
         A single demonstration gives approach, one manipulation primitive (nothing to compare it
         with) and remove. A trajectory whose object never moves is one rest: all of it is approach.
         """
-        self._check_hyper_parameters()
+        self._check_params()
         objects, arms = split_demonstrations(X, lengths, H)
         prepared = [self._prepare(o) for o in objects]
         order = (canonical_order(objects, [cuts for _, cuts in prepared]) if self.merging == "agglomerative"
@@ -235,14 +236,14 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
     def relative_trajectories(self, X: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
         """Raw object poses ``X`` ``(N, 6)`` of demonstrations of ``lengths`` frames as :meth:`fit` models
         them: one ``(T_i, 6)`` array per demonstration, relative to its initial rest pose (m, rad)."""
-        self._check_hyper_parameters()
+        self._check_params()
         return [self._prepare(o)[0] for o in split_demonstrations(X, lengths)[0]]
 
     def motion_spans(self, X: np.ndarray, lengths: Sequence[int]) -> list[tuple[np.ndarray, int, int]]:
         """Per demonstration of raw object poses ``X`` ``(N, 6)`` and ``lengths``: its trajectory relative
         to the initial rest (as :meth:`relative_trajectories`), the first moving frame and the first frame
         of the final rest, as :meth:`fit` cuts them (both the length for an object that never moves)."""
-        self._check_hyper_parameters()
+        self._check_params()
         spans = []
         for poses in split_demonstrations(X, lengths)[0]:
             relative, cuts = self._prepare(poses)
@@ -516,7 +517,7 @@ class PrimitiveDiscovery(JsonModelFile, Estimator):
 
     # -- use
 
-    def predict(self, X: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
+    def predict(self, X: np.ndarray, lengths: Sequence[int] | None = None) -> list[np.ndarray]:
         """Per-frame primitive ids of new demonstrations: one ``(T_i,)`` int array per demonstration.
 
         ``X`` and ``lengths`` are raw object poses ``(N, 6)`` and frame counts, as :meth:`fit` takes

@@ -13,7 +13,6 @@ and :meth:`sample` use only those. Smoothing changes probabilities only (:meth:`
 from __future__ import annotations
 
 import math
-
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -62,14 +61,19 @@ class ActionGrammar(JsonModelFile, Estimator):
 
     # -- fit
 
-    def fit(self, sequences: Sequence[Sequence[Symbol]]) -> ActionGrammar:
-        """Count class bigrams (with ``<start>`` and ``<end>``) in the demonstrations' class sequences.
-
-        Classes are ints or strs (numpy ints are taken as ints); each sequence needs >= 1 class.
-        """
+    def _check_params(self) -> None:
         if not (isinstance(self.smoothing, (int, float)) and np.isfinite(self.smoothing) and self.smoothing >= 0):
             raise InvalidInputError(f"smoothing must be a finite number >= 0, got {self.smoothing!r}")
-        cleaned = _check_sequences(sequences)
+
+    def fit(self, X: Sequence, lengths: Sequence[int] | None = None) -> ActionGrammar:
+        """Count class bigrams (with ``<start>`` and ``<end>``) in the demonstrations' class sequences.
+
+        ``X`` holds the sequences' classes concatenated, with ``lengths`` classes each; with ``lengths``
+        ``None`` it is the list of sequences itself. Classes are ints or strs (numpy ints are taken as
+        ints); each sequence needs >= 1 class.
+        """
+        self._check_params()
+        cleaned = _check_sequences(X if lengths is None else _split_symbols(X, lengths))
         self.symbols_ = list(dict.fromkeys(s for seq in cleaned for s in seq))
         index = self._index()
         n = len(self.symbols_)
@@ -220,7 +224,8 @@ class ActionGrammar(JsonModelFile, Estimator):
                 except (TypeError, ValueError):
                     nats = math.nan
                 if not math.isfinite(nats):
-                    raise InvalidInputError(f"bonus[{i}][{symbol!r}] is {value!r}; a bonus must be a finite number of nats")
+                    raise InvalidInputError(f"bonus[{i}][{symbol!r}] is {value!r}; a bonus must be a finite number of "
+                                            "nats")
                 if symbol in index:
                     matrix[i, index[symbol]] += nats
         return matrix
@@ -376,3 +381,12 @@ def _viterbi_steps(log_start: np.ndarray, log_steps: np.ndarray, log_frame: np.n
         state = int(pointers[state])
         path.append(state)
     return float(delta.max()), path[::-1]
+
+
+def _split_symbols(X: Sequence, lengths: Sequence[int]) -> list[list]:
+    """Concatenated classes ``X`` cut into sequences of ``lengths`` classes each."""
+    counts = np.asarray(lengths)
+    if counts.ndim != 1 or counts.dtype.kind not in "iu" or np.any(counts < 1) or counts.sum() != len(X):
+        raise InvalidInputError(f"lengths must be counts >= 1 that sum to the {len(X)} classes of X; got {lengths!r}")
+    bounds = np.concatenate([[0], np.cumsum(counts)])
+    return [list(X[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]

@@ -13,11 +13,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.demonstration.datasets import Demonstrations, Episode
+from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION, REMOVE, PrimitiveDiscovery
-from hoap_actions.primitives.discovery.groups import action_groups, group_members, primitive_names
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.discovery.groups import action_groups, group_members, primitive_names
 
 __all__ = ["group_colours", "plot_gaussians", "plot_grammar", "plot_primitives_per_action"]
 

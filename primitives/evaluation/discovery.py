@@ -31,9 +31,9 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hoap_actions.demonstration.datasets import Demonstrations, Episode
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.base import check_is_fitted
-from hoap_actions.demonstration.datasets import Demonstrations, Episode
 from hoap_actions.primitives.discovery.estimator import APPROACH, REMOVE, PrimitiveDiscovery
 from hoap_actions.primitives.discovery.groups import action_groups, frame_labels
 from hoap_actions.primitives.evaluation.segmentation import (

@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.cluster.vq import kmeans2
 
-from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.demonstration.datasets import Demonstrations
+from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.discovery.groups import action_groups
 

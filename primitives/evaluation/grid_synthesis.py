@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hoap_actions.errors import InvalidInputError
 from hoap_actions.demonstration.datasets import N_MARKERS, Demonstrations
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 from hoap_actions.primitives.hmm.posture import PostureModel, choose_alpha
 from hoap_actions.primitives.trajectory_metrics import dtw_average, warped_point_errors, warped_rms_error

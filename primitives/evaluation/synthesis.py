@@ -15,11 +15,11 @@ import warnings
 
 import numpy as np
 
-from hoap_actions.errors import ExtrapolationWarning, InvalidInputError
-from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.demonstration.datasets import Demonstrations
+from hoap_actions.errors import ExtrapolationWarning, InvalidInputError
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, UNKNOWN
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.models.action_models import ActionModels
 
 __all__ = ["whole_action_errors"]
 
@@ -42,7 +42,8 @@ def whole_action_errors(models: ActionModels, demos: Demonstrations) -> dict[int
             warnings.simplefilter("ignore", ExtrapolationWarning)
             made = models.synthesize_action(action, phi, n_frames=end - start)[:, hand]
         shown = episode.H[start:end, hand]
-        entry = result.setdefault(action, {"runs": 0, "model_m": [], "baseline_m": [], "lift_m": models.action_lifts_[action]})
+        entry = result.setdefault(action, {"runs": 0, "model_m": [], "baseline_m": [],
+                                           "lift_m": models.action_lifts_[action]})
         entry["runs"] += 1
         entry["model_m"].append(float(np.median(np.linalg.norm(made - shown, axis=1))))
         entry["baseline_m"].append(float(np.median(np.linalg.norm(_straight(shown) - shown, axis=1))))

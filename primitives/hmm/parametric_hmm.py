@@ -25,6 +25,7 @@ import numpy as np
 
 from hoap_actions.errors import ExtrapolationWarning, IdentifiabilityError, InvalidInputError
 from hoap_actions.primitives.base import Estimator, check_is_fitted
+from hoap_actions.primitives.hmm import phmm_effects, phmm_file
 from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures, effect_groups
 from hoap_actions.primitives.hmm.hmm_math import (
     forward_backward_padded,
@@ -33,7 +34,6 @@ from hoap_actions.primitives.hmm.hmm_math import (
     validate_sequences,
     viterbi,
 )
-from hoap_actions.primitives.hmm import phmm_effects, phmm_file
 from hoap_actions.primitives.hmm.phmm_batch import SequenceBatch, check_train_phi, equal_parts, is_int, is_real
 
 __all__ = ["EMReport", "ParametricHMM"]
@@ -129,6 +129,7 @@ class ParametricHMM(Estimator):
     _file_kind = "ParametricHMM"
     _format_version = phmm_file.FORMAT_VERSION
     _readable_versions = phmm_file.READABLE_VERSIONS
+    _refit_free_params = ("random_state",)  # estimate_phi draws its restarts with it
 
     def __init__(self, n_states: int = 10, topology: str = "left-right", covariance_type: str = "full",
                  n_iter: int = 50, tol: float = 1e-4, reg_covar: float = 1e-6,
@@ -149,7 +150,7 @@ class ParametricHMM(Estimator):
         self.max_centres = max_centres
 
     # ------------------------------------------------------------------------------- checks
-    def _check_hyper_parameters(self) -> None:
+    def _check_params(self) -> None:
         if not is_int(self.n_states) or self.n_states < 1:
             raise InvalidInputError(f"n_states must be a positive int; got {self.n_states!r}")
         if self.topology not in _TOPOLOGIES:
@@ -313,8 +314,9 @@ class ParametricHMM(Estimator):
             self.startprob_ = start / start.sum()
 
     # ------------------------------------------------------------------------------------- fit
-    def fit(self, X, lengths, phi) -> ParametricHMM:
-        """Train by extended Baum-Welch on sequences ``X`` (N, D) with ``lengths`` and their effects ``phi`` (S, p).
+    def fit(self, X, lengths=None, phi=None) -> ParametricHMM:
+        """Train by extended Baum-Welch on sequences ``X`` (N, D) with ``lengths`` (``None``: one sequence)
+        and their effects ``phi`` (S, p), one per sequence (required).
 
         The training effects must affinely span R^p (at least p + 1 of them, not all on one
         hyperplane) or W is not identifiable.  Left-right models start from each sequence cut into
@@ -322,7 +324,10 @@ class ParametricHMM(Estimator):
         cut with a third of its moves turned into skips; ergodic models from the cut with smoothed
         transitions.
         """
-        self._check_hyper_parameters()
+        self._check_params()
+        if phi is None:
+            raise InvalidInputError("fit needs the effects phi (n_sequences, p) of the training sequences: "
+                                    "fit(X, lengths, phi)")
         X, lengths = validate_sequences(X, lengths)
         phi = check_train_phi(phi, lengths.size)
         k = int(self.n_states)

@@ -1,12 +1,14 @@
-"""The file format of :meth:`ParametricHMM.save <hoap_actions.primitives.hmm.parametric_hmm.ParametricHMM.save>` (``format_version`` 3; version 1 files, written before the
-covariance prior existed, load as models without one; version 1 and 2 files, written before the mean
-model could bend, load as linear models), an uncompressed ``.npz`` archive
-readable with ``numpy.load(path, allow_pickle=False)``; every entry is a plain numeric or unicode array:
+"""The file format of :meth:`ParametricHMM.save <hoap_actions.primitives.hmm.parametric_hmm.ParametricHMM.save>`
+(``format_version`` 4; version 1 files, written before the covariance prior existed, load as models
+without one; version 1 and 2 files, written before the mean model could bend, load as linear models;
+files before version 4 hold ``train_phi_`` under the key ``train_params_``), an
+uncompressed ``.npz`` archive readable with ``numpy.load(path, allow_pickle=False)``; every entry is a
+plain numeric or unicode array:
 
 =======================  ===================  ===============================================================
 key                      shape                meaning
 =======================  ===================  ===============================================================
-format_version           () int               3
+format_version           () int               4
 kind                     () str               "ParametricHMM"
 n_states, n_iter         () int               hyper-parameters as given to ``__init__``
 topology                 () str               "left-right", "left-right-skip" or "ergodic"
@@ -26,8 +28,8 @@ V_                       (K, D, m)            feature-to-mean matrices (m = 0: l
 feature_centres_         (m, p)               thin-plate centres in the unit box of the training range (v3)
 feature_low_, _span_     (p,)                 that box: q = (phi - low) / span (version 3)
 covars_                  (K, D, D) or (K, D)  covariances ("full") or variances ("diag")
-train_params_            (S, p), S >= 1       effects phi of the training sequences (attribute ``train_phi_``:
-                                              restarts of estimate_phi; synthesize warns far outside their range)
+train_phi_               (S, p), S >= 1       effects phi of the training sequences (restarts of estimate_phi;
+                                              synthesize warns far outside their range)
 log_likelihood_history_  (I,)                 training log-likelihood per EM iteration
 converged_               () bool              whether training stopped on ``tol``
 =======================  ===================  ===============================================================
@@ -54,8 +56,8 @@ from hoap_actions.primitives.hmm.hmm_math import precision_cholesky
 __all__ = ["FORMAT_VERSION", "READABLE_VERSIONS", "check_learned_meaning", "model_from_arrays", "read_model",
            "write_model"]
 
-FORMAT_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+FORMAT_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 # Loading: how a file is recognised, and how far saved values may be from what EM produces.
 _ZIP_SIGNATURES = (b"PK\x03\x04", b"PK\x05\x06")  # an .npz archive is a zip file (with members / empty)
 _OTHER_SIGNATURES = (
@@ -65,7 +67,7 @@ _OTHER_SIGNATURES = (
 _SNIFF_BYTES = 16
 _ACCEPTED_FILES = "ParametricHMM.load reads the .npz archives written by ParametricHMM.save"
 # Entries stored under another name than their attribute (the file format is older than the name phi).
-_ATTRIBUTE_OF_ENTRY = {"train_params_": "train_phi_"}
+_TRAIN_PHI_ENTRY = {1: "train_params_", 2: "train_params_", 3: "train_params_", 4: "train_phi_"}
 _PROBABILITY_TOLERANCE = 1e-6  # |sum - 1| of a saved distribution; EM's normalisation errs by ~1e-16
 _SYMMETRY_TOLERANCE = 1e-8  # largest |S - S^T| relative to the largest |S| (EM's covariances are exactly symmetric)
 
@@ -97,7 +99,7 @@ def write_model(model: Any, path: Path, overwrite: bool) -> None:
         "feature_low_": model.effect_features_.low,
         "feature_span_": model.effect_features_.span,
         "covars_": model.covars_,
-        "train_params_": model.train_phi_,
+        "train_phi_": model.train_phi_,
         "log_likelihood_history_": getattr(model, "log_likelihood_history_", np.zeros(0)),
         "converged_": np.array(bool(getattr(getattr(model, "monitor_", None), "converged", False))),
     }
@@ -134,11 +136,12 @@ def model_from_arrays(cls: type, path: Path, arrays: dict[str, np.ndarray], vers
             model.mean_model = str(arrays["mean_model"])
             model.smoothing = float(arrays["smoothing"])
             model.max_centres = int(arrays["max_centres"])
-        model._check_hyper_parameters()
+        model._check_params()
         k = model.n_states
         mean_bar = _entry(arrays, "mean_bar_", 2, path)
         w = _entry(arrays, "W_", 3, path)
-        train = _entry(arrays, "train_params_", 2, path)
+        train_key = _TRAIN_PHI_ENTRY[version]
+        train = _entry(arrays, train_key, 2, path)
         d, p = mean_bar.shape[1], w.shape[2]
         try:
             model._prior_variances(d)
@@ -151,7 +154,7 @@ def model_from_arrays(cls: type, path: Path, arrays: dict[str, np.ndarray], vers
             "mean_bar_": (mean_bar, (k, d)),
             "W_": (w, (k, d, p)),
             "covars_": (_entry(arrays, "covars_", len(cov_shape), path), cov_shape),
-            "train_params_": (train, (train.shape[0], p)),
+            train_key: (train, (train.shape[0], p)),
         }
         if version >= 3:
             bend = _entry(arrays, "V_", 3, path)
@@ -165,7 +168,7 @@ def model_from_arrays(cls: type, path: Path, arrays: dict[str, np.ndarray], vers
         for name, (value, shape) in learned.items():
             if value.shape != shape or not np.all(np.isfinite(value)):
                 raise DataFileError(f"{path}: entry {name} has shape {value.shape}, expected {shape} and finite")
-            setattr(model, _ATTRIBUTE_OF_ENTRY.get(name, name), value)
+            setattr(model, "train_phi_" if name == train_key else name, value)
         model.effect_features_ = _features_from_entries(model, path)
         check_learned_meaning(model, path)
         history = _entry(arrays, "log_likelihood_history_", 1, path)
@@ -190,7 +193,7 @@ def check_learned_meaning(model: Any, path: Path) -> None:
         return DataFileError(f"{path}: entry {name} {problem}; accepted: {accepted}")
 
     if model.train_phi_.shape[0] == 0:
-        raise bad("train_params_", "is empty", "the (S, p) effects of the S >= 1 training sequences")
+        raise bad("train_phi_", "is empty", "the (S, p) effects of the S >= 1 training sequences")
     start, trans = model.startprob_, model.transmat_
     if np.any(start < 0) or abs(start.sum() - 1.0) > _PROBABILITY_TOLERANCE:
         raise bad("startprob_", f"is not a probability distribution (sum {start.sum():.6g}, smallest "

@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from hoap_actions.errors import DataFileError, InvalidInputError
-from hoap_actions.primitives.hmm import hmm_math
-from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
 from hoap_actions.demonstration.datasets import N_MARKERS
+from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.primitives.base import Estimator, check_is_fitted, file_params
+from hoap_actions.primitives.hmm import hmm_math
 from hoap_actions.primitives.json_files import JsonModelFile, write_json_model
 
 __all__ = ["PostureModel", "choose_alpha", "hand_inputs"]
@@ -54,7 +54,7 @@ def hand_inputs(X: np.ndarray) -> np.ndarray:
     return np.hstack([wrist, pointing[0] / lengths[0], pointing[1] / lengths[1]])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _monomials(degree: int) -> np.ndarray:
     """``(F, degree)`` input indices of every monomial of total degree 1..``degree`` in :data:`N_INPUTS`
     variables, padded with index :data:`N_INPUTS` (a column of ones) below full degree."""
@@ -92,7 +92,7 @@ class PostureModel(JsonModelFile, Estimator):
         self.degree = degree
         self.alpha = alpha
 
-    def _check_hyper_parameters(self) -> None:
+    def _check_params(self) -> None:
         if isinstance(self.degree, bool) or not isinstance(self.degree, (int, np.integer)) or not 1 <= self.degree <= 5:
             raise InvalidInputError(f"degree must be an int from 1 to 5; got {self.degree!r}")
         if not (isinstance(self.alpha, (int, float, np.floating, np.integer)) and np.isfinite(self.alpha)
@@ -107,7 +107,7 @@ class PostureModel(JsonModelFile, Estimator):
     def fit(self, X: np.ndarray, lengths: Sequence[int] | None = None) -> PostureModel:
         """Learn from marker frames ``X`` ``(N, 18)`` (6 markers x xyz, m) of movements of ``lengths`` frames
         (the frames are used one by one; ``lengths`` is checked against ``X``)."""
-        self._check_hyper_parameters()
+        self._check_params()
         X, _ = hmm_math.validate_sequences(X, lengths)
         if X.shape[1] != 3 * N_MARKERS:
             raise InvalidInputError(f"X must have {3 * N_MARKERS} columns (6 markers x xyz); got shape {X.shape}")
@@ -122,7 +122,8 @@ class PostureModel(JsonModelFile, Estimator):
         self.feature_mean_ = features.mean(axis=0)
         self.target_mean_ = X[:, COMPLETED].mean(axis=0)
         F = features - self.feature_mean_
-        self.coef_ = np.linalg.solve(F.T @ F + self.alpha * np.eye(F.shape[1]), F.T @ (X[:, COMPLETED] - self.target_mean_))
+        self.coef_ = np.linalg.solve(F.T @ F + self.alpha * np.eye(F.shape[1]),
+                                     F.T @ (X[:, COMPLETED] - self.target_mean_))
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
@@ -130,7 +131,8 @@ class PostureModel(JsonModelFile, Estimator):
         check_is_fitted(self)
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != 3 * N_MARKERS or not np.all(np.isfinite(X)):
-            raise InvalidInputError(f"X must be finite marker frames of shape (T, {3 * N_MARKERS}); got shape {X.shape}")
+            raise InvalidInputError(f"X must be finite marker frames of shape (T, {3 * N_MARKERS}); got shape "
+                                    f"{X.shape}")
         return (self._features(hand_inputs(X)) - self.feature_mean_) @ self.coef_ + self.target_mean_
 
     def complete(self, X: np.ndarray) -> np.ndarray:
@@ -144,14 +146,15 @@ class PostureModel(JsonModelFile, Estimator):
     # -- files
 
     def _write(self, path: Path, overwrite: bool) -> None:
-        body = {"params": file_params(self), **{name.rstrip("_"): getattr(self, name).tolist() for name in self._learned}}
+        body = {"params": file_params(self),
+                **{name.rstrip("_"): getattr(self, name).tolist() for name in self._learned}}
         write_json_model(path, self._file_kind, self._format_version, body, overwrite)
 
     @classmethod
     def _from_file(cls, path: Path, document: dict[str, Any], version: int) -> PostureModel:
         try:
             model = cls(**document["params"])
-            model._check_hyper_parameters()
+            model._check_params()
             n_features = len(_monomials(model.degree))
             shapes = {"input_mean_": (N_INPUTS,), "input_scale_": (N_INPUTS,), "feature_mean_": (n_features,),
                       "target_mean_": (6,), "coef_": (n_features, 6)}

@@ -117,7 +117,7 @@ def select_mean_model(X, lengths, phi, candidates: Sequence[Mapping], n_folds: i
         raise InvalidInputError(f"n_folds must be an int in [2, {n_groups}] (the number of distinct effects: "
                                 f"repetitions of one effect stay in one fold); got {n_folds!r}")
     for candidate in cands:  # bad keywords fail here, before any training
-        ParametricHMM(**{**model_kwargs, **candidate})._check_hyper_parameters()
+        ParametricHMM(**{**model_kwargs, **candidate})._check_params()
     rng = np.random.default_rng(random_state)
     folds = np.array_split(rng.permutation(n_groups), int(n_folds))
     seqs = _split(X, lengths)

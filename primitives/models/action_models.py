@@ -43,14 +43,15 @@ Choices (each measured on a validation split of ``paper`` recordings; figures an
   displacement features only (over the training effects a state's positions spread across the table),
   ``stay_weight`` 2, then the same object vote per frame and Viterbi again.
 
-Files: :meth:`ActionModels.save` writes a models directory (layout in :mod:`~hoap_actions.primitives.models.models_directory`);
-:meth:`ActionModels.load` validates every file and names the one that is wrong.
+Files: :meth:`ActionModels.save` writes a models directory (layout in
+:mod:`~hoap_actions.primitives.models.models_directory`); :meth:`ActionModels.load` validates every file
+and names the one that is wrong.
 """
 
 from __future__ import annotations
 
-import logging
 import dataclasses
+import logging
 import math
 import sys
 import warnings
@@ -63,18 +64,10 @@ from tqdm import tqdm
 from hoap_actions.errors import ExtrapolationWarning, InvalidInputError, NotFittedError
 from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.base import Estimator, check_is_fitted
-from hoap_actions.primitives.models.whole_actions import action_level
-from hoap_actions.primitives.models.connected_recognition import exit_probability
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, PrimitiveDiscovery
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.discovery.groups import action_groups
-from hoap_actions.primitives.models.models_directory import (
-    FORMAT_VERSION,
-    KIND,
-    models_from_directory,
-    read_models_directory,
-    unique_profiles,
-    write_models_directory,
-)
+from hoap_actions.primitives.hmm.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
 from hoap_actions.primitives.models.class_models import (
     EFFECT_DIM,
     PHI_NAMES,
@@ -84,10 +77,18 @@ from hoap_actions.primitives.models.class_models import (
     lookup_model,
     marker_features,
 )
+from hoap_actions.primitives.models.connected_recognition import exit_probability
 from hoap_actions.primitives.models.decoding import ActionDecoding
+from hoap_actions.primitives.models.models_directory import (
+    FORMAT_VERSION,
+    KIND,
+    models_from_directory,
+    read_models_directory,
+    unique_profiles,
+    write_models_directory,
+)
 from hoap_actions.primitives.models.object_estimate import HAND_FRAME_MARKERS, fit_grasp_offset
-from hoap_actions.primitives.discovery.grammar import ActionGrammar
-from hoap_actions.primitives.hmm.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
+from hoap_actions.primitives.models.whole_actions import action_level
 
 logger = logging.getLogger(__name__)
 
@@ -96,27 +97,41 @@ __all__ = ["ActionModels", "ClassModel", "DecodedSegment", "SegmentRecognition",
 class ActionModels(ActionDecoding, Estimator):
     """Learn, recognise and synthesise with one PHMM per discovered class (module docstring: the choices).
 
-    Args:
-        covariance_type, reg_covar: the PHMMs' (see :class:`ParametricHMM`).
-        covars_weight: frames per state of the manipulation classes' pooled variance prior (0: none).
-        effect_tol: least spread (m) of a phi direction a class's PHMM models.
-        max_states, state_fraction: states per class (see the module docstring).
-        velocity: append marker displacements to the positions.
-        n_restarts: phi estimates started per class and movement (from the mean training effect, then
-            from random training effects).
-        n_candidates: classes :meth:`recognize` estimates phi for: those whose chains, over their
-            training effects, explain the movement best (effect continuity compares their phis).
-        unexplained_penalty: nats a class pays for a piece shorter than its chain (``None``: ruled out).
-        continuity_weight: nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
-        stay_weight: power on self-transition probabilities in connected recognition (:meth:`decode`).
-        object_vote: nats that each piece (:meth:`decode_segments`) or each frame (:meth:`decode`) gives
-            its class in discovery's parse of the object trajectory estimated from the hand
-            (:meth:`object_parse`; 0: off; models learned without object poses have no grasp offset and
-            cannot vote).
-        mean_model, smoothing: how each PHMM's state means depend on phi (see :class:`ParametricHMM`).
-        speed_augmentation: time-stretch factors (in [0.5, 2]); every class's training movement is also
-            fitted as if performed that many times as long (resampled in time), so that the chains accept a
-            demonstrator slower or faster than those seen. ``()`` (default): none.
+    Parameters
+    ----------
+    covariance_type, reg_covar
+        the PHMMs' (see :class:`ParametricHMM`).
+    covars_weight
+        frames per state of the manipulation classes' pooled variance prior (0: none).
+    effect_tol
+        least spread (m) of a phi direction a class's PHMM models.
+    max_states, state_fraction
+        states per class (see the module docstring).
+    velocity
+        append marker displacements to the positions.
+    n_restarts
+        phi estimates started per class and movement (from the mean training effect, then
+        from random training effects).
+    n_candidates
+        classes :meth:`recognize` estimates phi for: those whose chains, over their
+        training effects, explain the movement best (effect continuity compares their phis).
+    unexplained_penalty
+        nats a class pays for a piece shorter than its chain (``None``: ruled out).
+    continuity_weight
+        nats per m^2 of gap between neighbouring manipulation pieces' effects (0: off).
+    stay_weight
+        power on self-transition probabilities in connected recognition (:meth:`decode`).
+    object_vote
+        nats that each piece (:meth:`decode_segments`) or each frame (:meth:`decode`) gives
+        its class in discovery's parse of the object trajectory estimated from the hand
+        (:meth:`object_parse`; 0: off; models learned without object poses have no grasp offset and
+        cannot vote).
+    mean_model, smoothing
+        how each PHMM's state means depend on phi (see :class:`ParametricHMM`).
+    speed_augmentation
+        time-stretch factors (in [0.5, 2]); every class's training movement is also
+        fitted as if performed that many times as long (resampled in time), so that the chains accept a
+        demonstrator slower or faster than those seen. ``()`` (default): none.
 
     Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
     ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
@@ -151,6 +166,7 @@ class ActionModels(ActionDecoding, Estimator):
         smoothing: float = 1.0,
         speed_augmentation: tuple[float, ...] = (),
         object_vote: float = 1000.0,
+        progress: bool = False,
     ) -> None:
         self.covariance_type = covariance_type
         self.reg_covar = reg_covar
@@ -168,6 +184,7 @@ class ActionModels(ActionDecoding, Estimator):
         self.smoothing = smoothing
         self.speed_augmentation = speed_augmentation
         self.object_vote = object_vote
+        self.progress = progress
 
     def _check_params(self) -> None:
         def number(name: str, low: float, high: float = math.inf, low_open: bool = False) -> None:
@@ -198,56 +215,52 @@ class ActionModels(ActionDecoding, Estimator):
                 raise InvalidInputError(f"{name} must be an int >= 1; got {value!r}")
         factors = self.speed_augmentation
         if not isinstance(factors, (tuple, list)) or not all(
-                isinstance(f, (int, float)) and not isinstance(f, bool) and 0.5 <= f <= 2.0 and f != 1.0 for f in factors):
+                isinstance(f, (int, float)) and not isinstance(f, bool) and 0.5 <= f <= 2.0 and f != 1.0
+                for f in factors):
             raise InvalidInputError(f"speed_augmentation must be a tuple of time-stretch factors in [0.5, 2], not 1; "
                                     f"got {factors!r}")
-        if not isinstance(self.velocity, bool):
-            raise InvalidInputError(f"velocity must be True or False; got {self.velocity!r}")
+        for name in ("velocity", "progress"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidInputError(f"{name} must be True or False; got {getattr(self, name)!r}")
 
     DECODING_PARAMS = ("n_restarts", "n_candidates", "unexplained_penalty", "continuity_weight", "stay_weight",
                        "object_vote")
     """Hyper-parameters that only recognition reads: fitted models take new values of these without a refit."""
 
-    def set_params(self, **params: object) -> ActionModels:
-        """Set :data:`DECODING_PARAMS` (validated; the others need a new fit) and return ``self``."""
-        unknown = sorted(set(params) - set(self.DECODING_PARAMS))
-        if unknown:
-            raise InvalidInputError(f"set_params takes the decoding parameters {list(self.DECODING_PARAMS)}; got "
-                                    f"{unknown} (fit new models to change the others)")
-        previous = self.get_params()
-        self.__dict__.update(params)
-        try:
-            self._check_params()
-        except InvalidInputError:
-            self.__dict__.update(previous)
-            raise
-        if "stay_weight" in params:
+    _refit_free_params = (*DECODING_PARAMS, "progress")
+    _unsaved_params = ("progress",)
+
+    def _params_changed(self, names: set[str]) -> None:
+        if "stay_weight" in names:
             self._chained = None  # the chained HMM is built with it
-        return self
 
     # ------------------------------------------------------------------------------------- fit
     def fit(
         self,
-        H: np.ndarray,
-        lengths: Sequence[int],
-        discovery: PrimitiveDiscovery,
-        fps: float,
+        X: np.ndarray,
+        lengths: Sequence[int] | None = None,
+        discovery: PrimitiveDiscovery | None = None,
+        fps: float | None = None,
         marker_names: Sequence[str] | None = None,
-        progress: bool = False,
         O: np.ndarray | None = None,
         demonstrators: Sequence[Mapping] = (),
     ) -> ActionModels:
         """Fit one PHMM per class of ``discovery`` and the grammar of its segmentations.
 
-        ``H`` are the demonstrations' arm markers, concatenated ``(N, 18)`` or ``(N, 6, 3)`` (m), with
-        ``lengths`` frames each, recorded at ``fps``; ``discovery`` was fitted on the same
-        demonstrations in the same order (its segments index them). ``progress`` shows a bar over
-        the class fits when stderr is a terminal. With the object poses ``O`` ``(N, 6)`` the action
-        level is learned too (:mod:`~hoap_actions.primitives.models.whole_actions`): one PHMM per whole action,
-        phi = the object's (or the hand's, for approach and remove) start and end. ``demonstrators``:
-        who performed the demonstrations (profiles as :meth:`DemonstratorProfile.to_dict` gives them;
-        empty: not known), kept so that recognising someone else can warn.
+        ``X`` are the demonstrations' arm markers, concatenated ``(N, 18)`` or ``(N, 6, 3)`` (m), with
+        ``lengths`` frames each (``None``: one demonstration), recorded at ``fps``; ``discovery`` was
+        fitted on the same demonstrations in the same order (its segments index them). With the object
+        poses ``O`` ``(N, 6)`` the action level is learned too
+        (:mod:`~hoap_actions.primitives.models.whole_actions`): one PHMM per whole action, phi = the
+        object's (or the hand's, for approach and remove) start and end. ``demonstrators``: who performed
+        the demonstrations (profiles as :meth:`DemonstratorProfile.to_dict` gives them; empty: not
+        known), kept so that recognising someone else can warn.
         """
+        if discovery is None or fps is None:
+            raise InvalidInputError("fit needs the discovery fitted on these demonstrations and their fps: "
+                                    "fit(X, lengths, discovery, fps)")
+        H = X
+        lengths = [len(H)] if lengths is None else lengths
         self._check_params()
         self._chained = None  # built from the fitted classes on first use
         hands = _split(H, lengths)
@@ -256,19 +269,21 @@ class ActionModels(ActionDecoding, Estimator):
         n_demos = len(discovery.segmentations_)
         if n_demos != len(hands):
             raise InvalidInputError(
-                f"discovery was fitted on {n_demos} demonstrations but H holds {len(hands)} (lengths); give the same ones"
+                f"discovery was fitted on {n_demos} demonstrations but H holds {len(hands)} (lengths); give the same "
+                "ones"
             )
         if not (isinstance(fps, (int, float)) and np.isfinite(fps) and fps > 0):
             raise InvalidInputError(f"fps must be a positive number of frames per second; got {fps!r}")
         self.fps_ = float(fps)
-        self.marker_names_ = tuple(marker_names) if marker_names is not None else tuple(f"marker_{i}" for i in range(hands[0].shape[1] // 3))
+        self.marker_names_ = (tuple(marker_names) if marker_names is not None
+                              else tuple(f"marker_{i}" for i in range(hands[0].shape[1] // 3)))
         inputs = [marker_features(h, self.fps_, self.velocity) for h in hands]
         stretched = {f: [marker_features(_stretch(h, f), self.fps_, self.velocity) for h in hands]
                      for f in self.speed_augmentation}
         pieces = [c for c in discovery.classes_ if c.kind == MANIPULATION]
         refit = self.covars_weight > 0 and bool(pieces)
         bar = tqdm(total=len(discovery.classes_) + (len(pieces) if refit else 0), desc="fitting class PHMMs",
-                   unit="class", disable=not (progress and sys.stderr.isatty()))
+                   unit="class", disable=not (self.progress and sys.stderr.isatty()))
         with bar:
             fitted = {}
             for c in discovery.classes_:
@@ -306,7 +321,8 @@ class ActionModels(ActionDecoding, Estimator):
             return None
         objects = np.split(np.asarray(O, dtype=float), np.cumsum(lengths)[:-1])
         shape = (-1, len(self.marker_names_), 3)
-        return fit_grasp_offset([(hands[d][a:b].reshape(shape), objects[d][a:b]) for d, (a, b) in sorted(spans.items())],
+        return fit_grasp_offset([(hands[d][a:b].reshape(shape), objects[d][a:b])
+                                 for d, (a, b) in sorted(spans.items())],
                                 self.marker_names_)
 
     def _fit_actions(self, inputs: list[np.ndarray], O: np.ndarray, lengths: Sequence[int]
@@ -401,7 +417,8 @@ class ActionModels(ActionDecoding, Estimator):
         margin = EXTRAPOLATION_MARGIN * (high - low) + self.effect_tol
         far = np.flatnonzero((phi < low - margin) | (phi > high + margin))
         if far.size:
-            ranges = "; ".join(f"{PHI_NAMES[i]} {phi[i]:.3f} m, demonstrated {low[i]:.3f}..{high[i]:.3f} m" for i in far)
+            ranges = "; ".join(f"{PHI_NAMES[i]} {phi[i]:.3f} m, demonstrated {low[i]:.3f}..{high[i]:.3f} m"
+                               for i in far)
             warnings.warn(f"phi is far outside what class {model.class_id}'s demonstrations show ({ranges}): the "
                           "movement is an unchecked extrapolation", ExtrapolationWarning, stacklevel=3)
 
@@ -443,7 +460,8 @@ def _split(H: np.ndarray, lengths: Sequence[int]) -> list[np.ndarray]:
     if H.ndim != 2 or H.shape[1] % 3 or not np.all(np.isfinite(H)):
         raise InvalidInputError(f"H must be finite markers (N, 3M) or (N, M, 3); got shape {np.shape(H)}")
     lengths = np.asarray(lengths)
-    if lengths.ndim != 1 or not np.issubdtype(lengths.dtype, np.integer) or np.any(lengths < 1) or lengths.sum() != len(H):
+    if (lengths.ndim != 1 or not np.issubdtype(lengths.dtype, np.integer) or np.any(lengths < 1)
+            or lengths.sum() != len(H)):
         raise InvalidInputError(f"lengths must be positive ints summing to len(H) = {len(H)}; got {lengths!r}")
     return np.split(H, np.cumsum(lengths)[:-1])
 

@@ -74,7 +74,8 @@ class ChainedHMM:
     def log_emissions(self, X: np.ndarray) -> np.ndarray:
         """Log-density of every frame of ``X`` (T, D) under every state, ``(T, S)``; three BLAS products."""
         precision = 1.0 / self.variances
-        const = -0.5 * (np.log(2.0 * np.pi * self.variances).sum(axis=1) + np.einsum("sd,sd,sd->s", self.means, self.means, precision))
+        const = -0.5 * (np.log(2.0 * np.pi * self.variances).sum(axis=1)
+                        + np.einsum("sd,sd,sd->s", self.means, self.means, precision))
         return -0.5 * (X * X) @ precision.T + X @ (self.means * precision).T + const
 
     def class_scores(self, log_emissions: np.ndarray) -> np.ndarray:
@@ -156,7 +157,8 @@ class ChainedHMM:
 
 
 def chain_classes(phmms: Sequence[ParametricHMM], class_ids: Sequence[int], exit_probabilities: Sequence[float],
-                  grammar: ActionGrammar, features: Sequence[int] | None = None, stay_weight: float = 1.0) -> ChainedHMM:
+                  grammar: ActionGrammar, features: Sequence[int] | None = None,
+                  stay_weight: float = 1.0) -> ChainedHMM:
     """Join the classes' left-right chains (in ``class_ids`` order) with ``grammar``'s transitions.
 
     ``features``: indices of the PHMMs' features the states keep (default all); ``stay_weight``: the
@@ -194,7 +196,8 @@ def chain_classes(phmms: Sequence[ParametricHMM], class_ids: Sequence[int], exit
         symbols = {int(s): i + 1 for i, s in enumerate(grammar.symbols_)}
         index = [symbols.get(int(c)) for c in class_ids]
         if None in index:
-            raise InvalidInputError(f"the grammar does not know classes {[c for c, i in zip(class_ids, index) if i is None]}")
+            raise InvalidInputError(f"the grammar does not know classes "
+                                    f"{[c for c, i in zip(class_ids, index) if i is None]}")
         log_a = np.log(grammar.transmat_)
         index = np.array(index)
         end = log_a.shape[0] - 1

@@ -37,7 +37,8 @@ class ActionDecoding:
             )
         if not np.all(np.isfinite(H)):
             raise InvalidInputError("a movement's markers must be finite (no NaN or inf); bridge occlusion gaps first "
-                                    "with hoap_actions.primitives.pipelines.mocap_cleaning.fill_gaps (learn and recognize do)")
+                                    "with hoap_actions.primitives.pipelines.mocap_cleaning.fill_gaps (learn and "
+                                    "recognize do)")
         return marker_features(H, self.fps_, self.velocity)
 
     def recognize(self, H: np.ndarray) -> SegmentRecognition:

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.primitives.base import file_params
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
@@ -86,7 +87,7 @@ def write_models_directory(models: Any, folder: Path) -> None:
     manifest = {
         "format_version": FORMAT_VERSION,
         "kind": KIND,
-        "params": models.get_params(),
+        "params": file_params(models),
         "fps": models.fps_,
         "marker_names": list(models.marker_names_),
         "covars_prior": None if models.covars_prior_ is None else models.covars_prior_.tolist(),
@@ -143,7 +144,8 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
     models.grasp_offset_ = None if offset is None else finite_array(manifest_path, "grasp_offset", offset, (3,))
     models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
     models.grammar_ = ActionGrammar.load(directory / "grammar.json")
-    classes = {e["id"]: _entry_model(directory, e, "classes", "class", width) for e in _entries(manifest_path, manifest, "classes")}
+    classes = {e["id"]: _entry_model(directory, e, "classes", "class", width)
+               for e in _entries(manifest_path, manifest, "classes")}
     actions = {e["id"]: _entry_model(directory, e, "actions", "action", width)
                for e in (_entries(manifest_path, manifest, "actions") if version >= 2 else [])}
     models.actions_ = dict(sorted(actions.items()))
@@ -151,7 +153,8 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
     for entry in (manifest["actions"] if version >= 2 else []):
         lift = entry.get("lift_m")
         if isinstance(lift, bool) or not isinstance(lift, (int, float)) or not np.isfinite(lift):
-            raise DataFileError(f"{manifest_path}: entry actions[{entry['id']}]: lift_m must be a number (m); got {lift!r}")
+            raise DataFileError(f"{manifest_path}: entry actions[{entry['id']}]: lift_m must be a number (m); got "
+                                f"{lift!r}")
         models.action_lifts_[entry["id"]] = float(lift)
     models.action_of_class_ = {}
     for entry in (manifest["classes"] if version >= 2 and actions else []):
@@ -175,8 +178,10 @@ def _entries(manifest_path: Path, manifest: dict, key: str) -> list[dict]:
     if not isinstance(entries, list):
         raise DataFileError(f"{manifest_path}: entry {key} must be a list of models")
     for entry in entries:
-        if not isinstance(entry, dict) or not isinstance(entry.get("id"), int) or entry.get("file") != f"{prefix}_{entry.get('id')}.npz":
-            raise DataFileError(f"{manifest_path}: entry {key}[{entry.get('id') if isinstance(entry, dict) else entry!r}] "
+        if (not isinstance(entry, dict) or not isinstance(entry.get("id"), int)
+                or entry.get("file") != f"{prefix}_{entry.get('id')}.npz"):
+            raise DataFileError(f"{manifest_path}: entry "
+                                f"{key}[{entry.get('id') if isinstance(entry, dict) else entry!r}] "
                                 f"must hold an int id and its file {prefix}_<id>.npz")
     return entries
 
@@ -185,7 +190,8 @@ def _entry_model(directory: Path, entry: dict, key: str, prefix: str, width: int
     """One model of the manifest, its numbers checked and its PHMM loaded and matched against them."""
     manifest_path = directory / MANIFEST
     where = f"{manifest_path}: entry {key}[{entry['id']}]"
-    centre = finite_array(manifest_path, f"{key}[{entry['id']}].effect_centre", entry.get("effect_centre"), (EFFECT_DIM,))
+    centre = finite_array(manifest_path, f"{key}[{entry['id']}].effect_centre", entry.get("effect_centre"),
+                          (EFFECT_DIM,))
     basis = np.asarray(entry.get("effect_basis"), dtype=float)
     if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
         raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")

@@ -15,9 +15,8 @@ hidden label:
    whose mean signatures lie within ``tolerance`` of each other (RMS, m) are one action (connected
    components), so pushes of every direction pool, moves pool, and the two rotations stay apart.
 
-Measured on ten ``paper`` recordings (``benchmarks/results/NOTES.md``): group signatures 0.000-0.002
-apart within pushes and within moves, 0.020 between pushes and moves, 0.036 between the rotations;
-the default tolerance (discovery's rest tolerance, 7.5 mm) falls in the gap.
+The default tolerance (discovery's rest tolerance) falls in the gap between the signatures of groups
+of one action and those of different actions on ``paper`` recordings (``docs/experiments/recognition.md``).
 """
 
 from __future__ import annotations
@@ -77,7 +76,8 @@ def whole_runs(discovery: PrimitiveDiscovery) -> list[ActionRun]:
             kind = None if pid is None else discovery.primitive_kinds_[pid]
             if current and (kind != MANIPULATION or discovery.primitive_kinds_[current[0][0]] != MANIPULATION):
                 first = current[0][0]
-                runs.append(ActionRun(demo, current[0][1], current[-1][2], discovery.primitive_kinds_[first], groups[first]))
+                runs.append(ActionRun(demo, current[0][1], current[-1][2], discovery.primitive_kinds_[first],
+                                      groups[first]))
                 current = []
             if pid is not None:
                 current.append((pid, start, end))

@@ -31,13 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
+from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_files
 from hoap_actions.primitives.base import file_params
-from hoap_actions.demonstration.datasets import load_demonstrations
-from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
-from hoap_actions.primitives.evaluation.discovery import evaluate_discovery
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.discovery.groups import action_groups, group_members, primitive_names
 from hoap_actions.primitives.discovery.plots import (
     group_colours,
@@ -45,7 +44,8 @@ from hoap_actions.primitives.discovery.plots import (
     plot_grammar,
     plot_primitives_per_action,
 )
-from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.evaluation.discovery import evaluate_discovery
+from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
 __all__ = ["FORMAT_VERSION", "OUTPUT_FILES", "Summary", "discover_to_dir"]
 

@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hoap_actions.demonstration.datasets import Demonstrations, load_demonstrations
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_directory
-from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.demonstration.datasets import Demonstrations, load_demonstrations
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
 logger = logging.getLogger(__name__)
@@ -113,8 +113,8 @@ def learn(
             raise InvalidInputError(f"the discovery in {discovery_dir} merged with {discovery.merging!r}, not the "
                                     f"{merging!r} asked for; give one of them, or a discovery made with {merging!r}")
     discovered = time.perf_counter()
-    models = ActionModels(**params).fit(H, lengths, discovery, header.fps, header.marker_names, progress=progress, O=O,
-                                        demonstrators=demonstrators)
+    models = ActionModels(**params, progress=progress).fit(H, lengths, discovery, header.fps, header.marker_names, O=O,
+                                                           demonstrators=demonstrators)
     trained = time.perf_counter()
     phmms = [m.phmm for m in models.classes_.values()]
     frames = sum(s.end - s.start for c in discovery.classes_ for s in c.segments)

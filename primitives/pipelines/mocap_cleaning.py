@@ -9,8 +9,8 @@ Exact recordings pass unchanged. A noisy one is cleaned the way motion-capture d
   6 Hz cut-off (:data:`LOWPASS_HZ`), the usual choice for human movement, on markers and object poses.
 
 Why the filter: the discovery reads the object's pose to tell rest from motion and cut the motion
-every few centimetres; 1 mm / 1 deg of white noise made it lose action groups on 2 of 3 validation
-recordings, and with the filter it found all 12 on each (``benchmarks/results/NOTES.md``).
+every few centimetres, and white noise of a millimetre or a degree makes it lose action groups
+(``docs/experiments/discovery.md``).
 
 Rotation vectors are filtered component by component: the table-top turns here stay far from the
 angle pi where rotation vectors jump.
@@ -25,8 +25,8 @@ import warnings
 import numpy as np
 from scipy.signal import butter, filtfilt
 
-from hoap_actions.errors import InvalidInputError
 from hoap_actions.demonstration.datasets import Demonstrations
+from hoap_actions.errors import InvalidInputError
 
 logger = logging.getLogger(__name__)
 
@@ -65,7 +65,8 @@ def lowpass(X: np.ndarray, fps: float, cutoff_hz: float = LOWPASS_HZ) -> np.ndar
     """The zero-lag low-pass of ``X`` along its first axis (frames at ``fps`` Hz); sequences too short
     to filter (fewer than 2 frames) are returned as they are."""
     if not 0.0 < cutoff_hz < fps / 2.0:
-        raise InvalidInputError(f"cutoff_hz must be in (0, {fps / 2:g}) Hz (below the Nyquist frequency); got {cutoff_hz!r}")
+        raise InvalidInputError(f"cutoff_hz must be in (0, {fps / 2:g}) Hz (below the Nyquist frequency); got "
+                                f"{cutoff_hz!r}")
     X = np.asarray(X, dtype=float)
     if len(X) < 2:
         return X.copy()
@@ -85,7 +86,8 @@ def clean_demonstrations(demos: Demonstrations) -> Demonstrations:
         O = lowpass(episode.O, demos.fps)
         jitter = float(np.sqrt(np.mean((episode.O[:, :3] - O[:, :3]) ** 2)))
         if jitter > NOISE_FACTOR * declared + NOISE_FLOOR_M:
-            warnings.warn(f"episode {index}: the object jitters by {jitter * 1000:.2f} mm (RMS above {LOWPASS_HZ:g} Hz), "
+            warnings.warn(f"episode {index}: the object jitters by {jitter * 1000:.2f} mm (RMS above {LOWPASS_HZ:g} "
+                          "Hz), "
                           f"far above the recording's declared {declared * 1000:.2f} mm: the recording is noisier than "
                           "its noise model says", NoiseAboveDeclaredWarning, stacklevel=2)
         H = lowpass(fill_gaps(episode.H).reshape(episode.T, -1), demos.fps).reshape(episode.H.shape)

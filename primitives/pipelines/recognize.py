@@ -32,11 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from hoap_actions.errors import InvalidInputError, UnseenDemonstratorWarning
-from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.demonstration.datasets import Demonstrations, Episode
+from hoap_actions.errors import InvalidInputError, UnseenDemonstratorWarning
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, UNKNOWN
 from hoap_actions.primitives.labels import runs
+from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
 logger = logging.getLogger(__name__)
@@ -132,9 +132,10 @@ def _warn_if_unseen(models: ActionModels, demos: Demonstrations) -> None:
     if seen and demonstrator not in seen:
         warnings.warn(
             f"the recording's demonstrator {demonstrator['name']!r} ({demonstrator['height_m']} m, speed "
-            f"{demonstrator['speed']}) is none of those the models learned from ({', '.join(d['name'] for d in seen)}): "
-            "expect lower segment accuracy and edit score (a slower demonstrator never seen cost 0.08 of edit "
-            "score and 6 points with the cuts given, benchmarks/results/NOTES.md)", UnseenDemonstratorWarning, stacklevel=3)
+            f"{demonstrator['speed']}) is none of those the models learned from "
+            f"({', '.join(d['name'] for d in seen)}): "
+            "expect lower segment accuracy and edit score (docs/experiments/demonstrators.md)",
+            UnseenDemonstratorWarning, stacklevel=3)
 
 
 def _true_phi(episode: Episode, class_id: int, start: int, end: int, models: ActionModels) -> np.ndarray:

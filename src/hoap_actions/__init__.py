@@ -12,7 +12,7 @@ import warnings
 warnings.filterwarnings("ignore", message="Please update your 'hppfcl' imports to 'coal'", category=DeprecationWarning)
 
 from hoap_actions import _moved  # noqa: E402  (after the filter)
-from hoap_actions.envs import ENV_IDS, register_envs  # noqa: E402
+from hoap_actions.envs import ENV_IDS, register_envs  # noqa: E402  (after the filter)
 
 _moved.install()
 

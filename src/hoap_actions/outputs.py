@@ -101,7 +101,8 @@ class _Claim:
                 raise busy from None
             except OSError as exc:
                 raise OutputPathError(
-                    f"cannot write the {what} in {partial.parent}: {exc.strerror or exc}; choose a folder you can write to"
+                    f"cannot write the {what} in {partial.parent}: {exc.strerror or exc}; choose a folder you can "
+                    "write to"
                 ) from exc
             if fcntl is None:
                 return fd
@@ -160,7 +161,8 @@ def _sweep_stale_partials(folder: Path, keep: Path) -> None:
 
 
 def _refuse_existing(path: Path, what: str) -> None:
-    raise DataExistsError(f"{path} already exists; pass overwrite=True (--overwrite on the command line) to replace the {what}")
+    raise DataExistsError(f"{path} already exists; pass overwrite=True (--overwrite on the command line) to replace "
+                          f"the {what}")
 
 
 def _publish(source: Path, target: Path, overwrite: bool, what: str) -> None:
@@ -235,7 +237,8 @@ def claimed_files(
         existing = [name for name in names if (folder / name).exists()]
         if existing and not overwrite:
             raise DataExistsError(
-                f"{folder} already holds {what} ({', '.join(existing)}); pass overwrite=True (--overwrite) to replace them"
+                f"{folder} already holds {what} ({', '.join(existing)}); pass overwrite=True (--overwrite) to replace "
+                "them"
             )
         _sweep_stale_partials(folder, keep=claim.partial)
         yield claim.partial

@@ -80,7 +80,8 @@ def _ray_map(function, jobs, initializer, initargs, workers, address) -> Iterato
                      configure_logging=False)
         except Exception as exc:  # Ray raises ConnectionError, ValueError or RuntimeError for a bad address
             raise InvalidInputError(f"could not start or join Ray at {address!r} ({type(exc).__name__}: {exc}); "
-                                    f"give {LOCAL_RAY!r} for this machine or the address of a running cluster") from None
+                                    f"give {LOCAL_RAY!r} for this machine "
+                                    "or the address of a running cluster") from None
     actors = []
     try:
         cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
