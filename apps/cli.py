@@ -96,7 +96,7 @@ def _robot_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
                         help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs "
                              "welded "
-                             "(it cannot fall, and it simulates about 3x faster)")
+                             "(it cannot fall, and it simulates 3.7x faster in joint_delta, 2.9x in ee_delta)")
 
 
 def _ray_option(parser: argparse.ArgumentParser, what: str) -> None:
@@ -291,8 +291,8 @@ def _track(args: argparse.Namespace) -> int:
             effect_figure(result, claimed["figure"], demos.fps)
     rms = summary["rms_m"]
     phi = summary["phi_error_m"]
-    print(f"episode {args.episode}, {summary['frames']} frames at {summary['hz']:.0f} Hz with {args.particles} "
-          "particles: "
+    print(f"episode {args.episode}: {summary['frames']} frames ({summary['frames'] / demos.fps:.1f} s at "
+          f"{demos.fps:.0f} Hz) tracked at {summary['hz']:.0f} frames/s with {args.particles} particles: "
           f"RMS shoulder {100 * rms['shoulder']:.1f}, elbow {100 * rms['elbow']:.1f}, finger "
           f"{100 * rms['index_tip']:.1f} cm; approach end {'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
           + ("no frame has a known class" if summary["frame_accuracy"] is None else
@@ -322,7 +322,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
     demo.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
     _robot_option(demo)
-    demo.add_argument("--episodes", type=_positive_int, default=10)
+    demo.add_argument("--episodes", type=_positive_int, default=10, help="layouts to run (default: %(default)s)")
     demo.add_argument("--seed", type=_seed, default=0, help="layouts are drawn from seeds S, S+1, ...")
     demo.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
     _ray_option(demo, "episodes")
@@ -345,7 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="as for demo: random (any env), scripted and phmm (PegInsert-v0), straight (Reach-v1)")
     col.add_argument("--env", default="hoap_actions/PegInsert-v0", choices=ENV_IDS, help="environment id")
     _robot_option(col)
-    col.add_argument("--episodes", type=_positive_int, default=10)
+    col.add_argument("--episodes", type=_positive_int, default=10, help="episodes to collect (default: %(default)s)")
     col.add_argument("--seed", type=_seed, default=0, help="episodes are the layouts of seeds S, S+1, ...")
     col.add_argument("--dataset-id", required=True, help="Minari id, e.g. hoap_actions/PegInsert/scripted-v0")
     col.add_argument("--models", type=_path, help="models directory for the phmm policy (default: the shipped models)")
@@ -353,9 +353,12 @@ def build_parser() -> argparse.ArgumentParser:
     col.set_defaults(func=_collect)
 
     rec = sub.add_parser("record", help="record simulated human demonstrations to an HDF5 dataset")
-    rec.add_argument("--preset", required=True, choices=["paper", "approach-grid", "small"])
+    rec.add_argument("--preset", required=True, choices=["paper", "approach-grid", "small"],
+                     help="paper: 104 episodes of pushes, moves and turns, each approach, act, remove (the "
+                          "paper's set); approach-grid: reaches to a grid of targets (Fig. 8); small: 4 episodes, "
+                          "for trying")
     rec.add_argument("--out", type=_path, required=True, help="dataset file to write (.h5)")
-    rec.add_argument("--seed", type=_seed, default=0)
+    rec.add_argument("--seed", type=_seed, default=0, help="draws the episodes' placements and variability")
     rec.add_argument("--workers", type=_positive_int, default=1,
                      help="processes sharing the episodes; the file is the same byte for byte (default: 1)")
     _ray_option(rec, "recordings")

@@ -251,7 +251,9 @@ def _classes_and_approach_ends(models: ActionModels, ep) -> tuple[np.ndarray, li
 
 def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) -> list[np.ndarray]:
     """Fig. 12 as video frames: the edge image beside the camera image with the estimated body (red), the
-    true markers' body (green, thin) and the estimated end of the current primitive (red dot)."""
+    true markers' body (green, thin) and the estimated end of the current primitive (red dot); the
+    overlay names the class, its PHMM state and the entropy of the particles' classes, and a legend
+    the colours."""
     import cv2
 
     if not result.images:
@@ -264,9 +266,15 @@ def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) 
         u, v = DEMONSTRATOR_CAMERA.project(frame.end_mean)[0]
         if np.isfinite(u) and np.isfinite(v):
             cv2.circle(picture, (int(round(u)), int(round(v))), 4, (230, 0, 0), -1, lineType=cv2.LINE_AA)
-        cv2.putText(picture, f"class {frame.class_id}  s {frame.state}  H {frame.entropy:.2f}", (6, 16),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(picture, f"class {frame.class_id}, state {frame.state}, entropy {frame.entropy:.2f} nats",
+                    (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
+        for row, (text, colour) in enumerate((("estimated body, end of the primitive", (230, 0, 0)),
+                                              ("recorded markers' body", (0, 160, 0)))):
+            cv2.putText(picture, text, (6, picture.shape[0] - 22 + 14 * row), cv2.FONT_HERSHEY_SIMPLEX, 0.38,
+                        colour, 1, cv2.LINE_AA)
         edges = cv2.cvtColor((result.edges[t] * 255).astype(np.uint8), cv2.COLOR_GRAY2RGB)
+        cv2.putText(edges, f"edge image, frame {t}", (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.42,
+                    (255, 255, 255), 1, cv2.LINE_AA)
         out.append(np.hstack([edges, picture]))
     return out
 
@@ -285,12 +293,13 @@ def effect_figure(result: TrackResult, path, fps: float) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.2), constrained_layout=True)
     for k, (name, colour) in enumerate((("x", "tab:red"), ("y", "tab:green"))):
         ax.plot(t, mean[:, k], color=colour, label=f"estimated end {name}")
-        ax.fill_between(t, mean[:, k] - std[:, k], mean[:, k] + std[:, k], color=colour, alpha=0.2)
+        ax.fill_between(t, mean[:, k] - std[:, k], mean[:, k] + std[:, k], color=colour, alpha=0.2,
+                        label=f"+-1 sd of the particles' end {name}")
         for start, end, target in result.approach_ends:
             ax.hlines(target[k] * 100, start / fps, end / fps, colors=colour, linestyles="dotted")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("cm (scene frame)")
-    ax.set_title("Fig. 11: the tracked effect; dotted: each approach's true end")
+    ax.set_title("Fig. 11: the tracked effect; dotted: each approach's true end; shaded: +-1 sd")
     ax.legend(fontsize=8, loc="best")
     fig.savefig(path, dpi=110)
     plt.close(fig)

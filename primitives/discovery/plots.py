@@ -21,6 +21,8 @@ from hoap_actions.primitives.discovery.groups import action_groups, group_member
 
 __all__ = ["group_colours", "plot_gaussians", "plot_grammar", "plot_primitives_per_action"]
 
+MAX_LABELLED_EDGES = 80  # more labels than this overlap into an unreadable figure
+
 
 def group_colours(model: PrimitiveDiscovery) -> list:
     """One colour per action group: greys for approach and remove, distinct hues for the actions."""
@@ -213,12 +215,13 @@ def plot_grammar(grammar: ActionGrammar, symbol_colours: Sequence, path: str | o
                     arrowprops={"arrowstyle": "-|>", "mutation_scale": 8, "linewidth": 0.5, "color": "0.35",
                                 "patchA": boxes[source].get_bbox_patch(), "patchB": boxes[target].get_bbox_patch(),
                                 "connectionstyle": "arc3,rad=0.12" if source != target else "arc3,rad=-2.5"})
-        if len(edges) <= 80:
+        if len(edges) <= MAX_LABELLED_EDGES:
             ax.text(x0 + 0.55 * (x1 - x0), y0 + 0.55 * (y1 - y0) + 0.12, f"{grammar.transmat_[source, target]:.2f}",
                     fontsize=5, color="0.2", ha="center", va="center")
     ax.axis("off")
-    ax.set_title(f"Action grammar over {n} primitives from {grammar.n_sequences_} demonstrations "
-                 "(edge labels: transition probabilities)", fontsize=9)
+    note = ("edge labels: transition probabilities" if len(edges) <= MAX_LABELLED_EDGES else
+            f"{len(edges)} edges, too many to label: their probabilities are in grammar.json")
+    ax.set_title(f"Action grammar over {n} primitives from {grammar.n_sequences_} demonstrations ({note})", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
