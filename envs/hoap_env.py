@@ -24,7 +24,8 @@ from hoap_actions.envs.robot import ROBOT_MODELS, Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Sim
 from hoap_actions.envs.task import Task
-from hoap_actions.errors import EnvClosedError, InvalidInputError
+from hoap_actions.errors import EnvClosedError, EnvCopyError, InvalidInputError, ResetNeededError
+from hoap_actions.seeds import check_seed
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +37,10 @@ PyBullet's 50: its standing depends on stiff foot contacts. With welded legs, 10
 physics step 1.5x cheaper (196 -> 132 us) and the policies solve as many validation layouts
 (61000-61049: scripted 50/50 at 10, 20 and 50 iterations; PHMM 48, 49, 49)."""
 
+
+_NO_COPIES = ("a hoap_actions env owns its PyBullet client, which a copy or a pickle would share with it (or with "
+              "whatever env holds the same client number in another process); make another env instead: "
+              "gymnasium.make(env.spec), and reset it with the same seed for the same episode")
 
 DENSE_DISTANCE_CAP = 1.0  # m: a dense step's reward is at least -1, as a sparse one's
 FALL_PENALTY_STEPS = 1.0  # a fall costs this many episodes' worth of the worst step reward (-1 each)
@@ -123,6 +128,7 @@ class HoapEnv(gymnasium.Env):
             raise InvalidInputError(f"robot={robot!r} is not a robot model; accepted: {list(ROBOT_MODELS)}")
         check_image_size(render_width, render_height, what="render")
         self.render_mode = render_mode
+        self._episode_ready = False  # set by a reset that ran to its end: step refuses a half-made world
         self.control_mode = control_mode
         self.reward_type = reward_type
         self.sim = Sim(gui=render_mode == "human")
@@ -151,6 +157,13 @@ class HoapEnv(gymnasium.Env):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        if self.sim.closed:
+            raise EnvClosedError("reset() called on a closed environment; create a new one with gymnasium.make")
+        if seed is not None:
+            check_seed(seed)
+        if options:
+            raise InvalidInputError(f"reset takes no options; got {sorted(options)} (the layout comes from the seed)")
+        self._episode_ready = False  # until this reset ends: an interrupted one leaves the env needing another
         super().reset(seed=seed)
         self.sim.rebuild()  # a fresh world every episode: same seed, same episode, whatever ran before
         self.robot.reset()
@@ -159,11 +172,16 @@ class HoapEnv(gymnasium.Env):
         self.robot.set_targets(self.robot.joint_positions())
         self.sim.step(SETTLE_STEPS)
         self.controller.reset()
-        return self._observation(), self._info()
+        observation, info = self._observation(), self._info()
+        self._episode_ready = True
+        return observation, info
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         if self.sim.closed:
             raise EnvClosedError("step() called on a closed environment; create a new one with gymnasium.make")
+        if not self._episode_ready:
+            raise ResetNeededError("step() called before a reset finished (never reset, or the last reset was "
+                                   "interrupted); call reset() first")
         action, action_clipped = self._checked_action(action)
         self.controller.apply(action)
         tick = getattr(self.controller, "tick", None)
@@ -188,7 +206,12 @@ class HoapEnv(gymnasium.Env):
         episode) earns :data:`FALL_PENALTY_STEPS` times the task's episode length in steps, negated:
         at least as bad as any whole episode without a fall, so falling early never pays (without it
         PPO learned to fall on ``Reach-v0``: a fall ended an episode of negative rewards)."""
-        distance = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        width = self.observation_space["desired_goal"].shape[-1]
+        achieved_goal, desired_goal = np.asarray(achieved_goal), np.asarray(desired_goal)
+        if achieved_goal.shape[-1:] != (width,) or desired_goal.shape[-1:] != (width,):
+            raise InvalidInputError(f"goals must end in this env's goal width {width}; got achieved_goal "
+                                    f"{achieved_goal.shape} and desired_goal {desired_goal.shape}")
+        distance = np.linalg.norm(achieved_goal - desired_goal, axis=-1)
         if self.reward_type == "dense":
             reward = -np.minimum(distance, DENSE_DISTANCE_CAP)
         else:
@@ -196,6 +219,12 @@ class HoapEnv(gymnasium.Env):
         fallen = _fallen(info, np.shape(distance))
         penalty = -FALL_PENALTY_STEPS * float(self.task_cls.episode_steps)
         return np.where(fallen, penalty, reward).astype(np.float32)
+
+    def __deepcopy__(self, memo: dict) -> HoapEnv:
+        raise EnvCopyError(_NO_COPIES)
+
+    def __reduce_ex__(self, protocol: object) -> tuple:
+        raise EnvCopyError(_NO_COPIES)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode == "rgb_array":
@@ -273,9 +302,14 @@ class HoapEnv(gymnasium.Env):
         expected = self.action_space.shape
         accepted = f"this env ({self.control_mode}) expects an array of {expected[0]} finite numbers in [-1, 1]"
         try:
-            array = np.asarray(action, dtype=np.float64)
+            raw = action if np.ma.isMaskedArray(action) else np.asarray(action)
         except (TypeError, ValueError):
             raise InvalidInputError(f"action {action!r} ({type(action).__name__}) is not numeric; {accepted}") from None
+        if np.ma.is_masked(raw):
+            raise InvalidInputError(f"action has masked entries: {action}; {accepted}")
+        if raw.dtype.kind not in "iuf":  # strings, complex numbers, booleans, objects: not one real number each
+            raise InvalidInputError(f"action {action!r} ({type(action).__name__}) is not real numbers; {accepted}")
+        array = np.asarray(raw, dtype=np.float64)
         if array.shape != expected:
             raise InvalidInputError(f"action has shape {array.shape}; {accepted}")
         if not np.all(np.isfinite(array)):

@@ -182,15 +182,19 @@ class Sim:
         PHMM episode from step 193 on). PyBullet is deterministic from a fresh world; rebuilding takes
         about 12 ms. Constraints made with :meth:`attach` are not made again."""
         recipe, self._recipe = self._recipe, []
-        self._p.resetSimulation()
-        self._bodies.clear()
-        self._joints.clear()
-        self._base_offsets.clear()
-        self._folded.clear()
-        self._folded_hosts.clear()
-        self._configure_world()
-        for method, args, kwargs in recipe:
-            getattr(self, method)(*args, **kwargs)
+        try:
+            self._p.resetSimulation()
+            self._bodies.clear()
+            self._joints.clear()
+            self._base_offsets.clear()
+            self._folded.clear()
+            self._folded_hosts.clear()
+            self._configure_world()
+            for method, args, kwargs in recipe:
+                getattr(self, method)(*args, **kwargs)
+        finally:
+            # the whole recipe survives an interrupted rebuild (Ctrl-C), so the next one makes the same world
+            self._recipe = recipe
 
     # ----------------------------------------------------------------- lifetime
     @property

@@ -46,6 +46,8 @@ from hoap_actions.policies.registry import StraightReach
 VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
 CONTROL_MODE = "ee_delta"
 
+SAVED_FILES = ("policy.zip", "normalize.pkl", "settings.json")  # what --save writes
+
 
 def make_env(env_id: str, fields: list[str] | None, residual: float = 0.0, repeat: int = 1) -> gymnasium.Env:
     """The env a policy trains and is evaluated on: the whole observation, or only ``fields`` of it; with
@@ -162,7 +164,8 @@ def main() -> None:
                 make_env(args.env, args.fields).close()  # unknown fields fail here, before any training
             partial = (claims.enter_context(claimed_file(args.json, args.overwrite, "learning curve")) if args.json
                        else None)
-            folder = claims.enter_context(claimed_directory(args.save, args.overwrite, "policy")) if args.save else None
+            folder = claims.enter_context(claimed_directory(
+                args.save, args.overwrite, "policy", foreign=_not_a_saved_policy)) if args.save else None
         except HoapActionsError as error:
             print(f"error: {error}", file=sys.stderr)
             raise SystemExit(2) from None
@@ -189,6 +192,11 @@ def _residual_and_repeat(saved: dict) -> tuple[float, int]:
 
 def _share(value: float | None) -> str:
     return "-" if value is None else f"{value:.0%}"
+
+
+def _not_a_saved_policy(folder: Path) -> list[str]:
+    """What a folder written by --save does not hold, which --overwrite must not delete."""
+    return sorted(p.name for p in folder.iterdir() if p.name not in SAVED_FILES or not p.is_file())
 
 
 def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:

@@ -46,12 +46,19 @@ def test_claimed_directory_is_published_whole_and_replaced_whole(tmp_path):
     with pytest.raises(DataExistsError, match="already exists"):
         with claimed_directory(target):
             raise AssertionError("the job must not start")
+    with pytest.raises(DataExistsError, match="a.npz, b.npz"):  # nothing says what the folder may hold
+        with claimed_directory(target, overwrite=True):
+            raise AssertionError("the job must not start")
+
+    def foreign(folder):
+        return sorted(p.name for p in folder.iterdir() if p.suffix != ".npz")
+
     with pytest.raises(RuntimeError):  # a failed replacement keeps the old directory
-        with claimed_directory(target, overwrite=True) as staging:
+        with claimed_directory(target, overwrite=True, foreign=foreign) as staging:
             (staging / "c.npz").write_text("2")
             raise RuntimeError("crash")
     assert sorted(p.name for p in target.iterdir()) == ["a.npz", "b.npz"]
-    with claimed_directory(target, overwrite=True) as staging:
+    with claimed_directory(target, overwrite=True, foreign=foreign) as staging:
         (staging / "c.npz").write_text("2")
     assert sorted(p.name for p in target.iterdir()) == ["c.npz"]  # no stale file of the old models
     assert sorted(p.name for p in tmp_path.iterdir()) == ["models"]

@@ -82,6 +82,7 @@ from hoap_actions.primitives.models.decoding import ActionDecoding
 from hoap_actions.primitives.models.models_directory import (
     FORMAT_VERSION,
     KIND,
+    foreign_entries,
     models_from_directory,
     read_models_directory,
     unique_profiles,
@@ -426,7 +427,7 @@ class ActionModels(ActionDecoding, Estimator):
     def _write(self, path: Path, overwrite: bool) -> None:
         """A models directory (:mod:`~hoap_actions.primitives.models.models_directory`) that appears whole once
         complete; an existing one is replaced only with ``overwrite``."""
-        with claimed_directory(path, overwrite, what="action models") as staging:
+        with claimed_directory(path, overwrite, what="action models", foreign=foreign_entries) as staging:
             self.write_files(staging)
 
     def write_files(self, folder: Path) -> None:

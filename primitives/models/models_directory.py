@@ -19,6 +19,8 @@ and one ``action_<id>.npz`` per action.
 from __future__ import annotations
 
 import json
+import os
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -33,7 +35,7 @@ from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 from hoap_actions.primitives.json_files import read_json_model
 from hoap_actions.primitives.models.class_models import EFFECT_DIM, ClassModel
 
-__all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array",
+__all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array", "foreign_entries",
            "models_from_directory", "names", "positive", "profiles_entry", "read_manifest", "read_models_directory",
            "unique_profiles", "write_models_directory"]
 
@@ -42,6 +44,21 @@ KIND = "ActionModels"
 MANIFEST = "manifest.json"
 MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
 """The files of a models directory besides one ``class_<id>.npz`` per class."""
+
+
+def foreign_entries(folder: Path) -> list[str]:
+    """The entries of ``folder`` that a models directory does not hold (besides ``PROVENANCE.json``,
+    which the shipped models carry), or every entry when it has no manifest of action models."""
+    entries = sorted(os.listdir(folder))
+    try:
+        kind = json.loads((folder / MANIFEST).read_text()).get("kind")
+    except (OSError, ValueError, AttributeError):
+        kind = None
+    if kind != KIND:
+        return entries
+    ours = re.compile(r"^(class|action)_\d+\.npz$")
+    return [name for name in entries
+            if not (name in (*MODELS_FILES, "PROVENANCE.json") or ours.match(name)) or not (folder / name).is_file()]
 
 
 def read_manifest(path: Path) -> dict:

@@ -22,6 +22,7 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.models_directory import foreign_entries
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
 logger = logging.getLogger(__name__)
@@ -79,7 +80,7 @@ def learn_to_dir(
     **params: object,
 ) -> LearnSummary:
     """:func:`learn`, then write the models to the directory ``out_dir``, claimed before anything is read."""
-    with claimed_directory(out_dir, overwrite, what="action models") as staging:
+    with claimed_directory(out_dir, overwrite, what="action models", foreign=foreign_entries) as staging:
         models, summary = learn(demos_paths, discovery_dir, progress, merging, **params)
         models.write_files(staging)
     logger.info("%s; wrote %s", summary.report(), out_dir)

@@ -35,6 +35,14 @@ class EnvClosedError(HoapActionsError, RuntimeError):
     """An environment (or its simulator) was used after ``close()``."""
 
 
+class ResetNeededError(HoapActionsError, RuntimeError):
+    """An environment was stepped before a reset finished (never reset, or its last reset was interrupted)."""
+
+
+class EnvCopyError(HoapActionsError, TypeError):
+    """An environment was copied or pickled: it owns a physics client that a copy cannot share."""
+
+
 class OutputPathError(HoapActionsError, OSError):
     """An output cannot be written where asked (a folder that cannot be created, no write permission)."""
 

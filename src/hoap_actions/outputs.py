@@ -24,7 +24,7 @@ import errno
 import logging
 import os
 import shutil
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from hoap_actions.errors import DataExistsError, InvalidInputError, OutputPathError
@@ -260,19 +260,28 @@ def claimed_files(
 
 
 @contextlib.contextmanager
-def claimed_directory(path: str | os.PathLike, overwrite: bool = False, what: str = "directory") -> Iterator[Path]:
+def claimed_directory(path: str | os.PathLike, overwrite: bool = False, what: str = "directory",
+                      foreign: Callable[[Path], list[str]] | None = None) -> Iterator[Path]:
     """Claim the directory ``path`` as a whole (e.g. a models directory, whose file names depend on
     what was learned): yields an empty staging folder beside it, which replaces ``path`` in one rename
     on success.
 
     The same checks as :func:`claimed_file`; without ``overwrite`` an existing ``path`` is refused, with
-    it the old directory is removed only once the new one is in place.
+    it the old directory is removed only once the new one is in place, and only if it holds nothing
+    but what such a directory holds: ``foreign(path)`` names the entries it does not (a recording, the
+    command's own inputs, another program's files), and any makes the claim fail before the work.
     """
     path = _path_text(path, what, f"out/{what.replace(' ', '-')}")
     if path.exists() and not path.is_dir():
         raise InvalidInputError(f"{path} exists and is not a directory; the {what} need a folder of their own")
     if path.name in ("", ".", ".."):
         raise InvalidInputError(f"the {what} path {path} does not name a folder")
+    if overwrite and path.is_dir():
+        strangers = sorted(os.listdir(path)) if foreign is None else foreign(path)
+        if strangers:
+            shown = ", ".join(strangers[:5]) + (f" and {len(strangers) - 5} more" if len(strangers) > 5 else "")
+            raise DataExistsError(f"{path} holds what is not {what} ({shown}); --overwrite (overwrite=True) replaces "
+                                  f"only a folder of {what}: give a new or empty folder")
     with _claimed(path, path.with_name(f".{path.name}{PARTIAL_MARK}"), True, overwrite, what) as staging:
         for leftover in staging.iterdir():  # a killed run's files: start afresh
             shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
