@@ -26,7 +26,6 @@ import logging
 import sys
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +33,7 @@ from tqdm import tqdm
 
 from hoap_actions.demonstration.datasets import Demonstrations, Episode
 from hoap_actions.errors import InvalidInputError, UnseenDemonstratorWarning
+from hoap_actions.parallel import ordered_map
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, UNKNOWN
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
@@ -177,8 +177,7 @@ def recognize_recording(
         _start_worker(*initargs)
         scores = [_score_episode(job) for job in tqdm(jobs_list, **bar)]
     else:
-        with ProcessPoolExecutor(jobs, initializer=_start_worker, initargs=initargs) as pool:
-            scores = list(tqdm(pool.map(_score_episode, jobs_list), **bar))
+        scores = list(tqdm(ordered_map(_score_episode, jobs_list, _start_worker, initargs, jobs), **bar))
     wall = time.perf_counter() - started
     frames = sum(s.frames for s in scores)
     segments = sum(s.segments for s in scores)

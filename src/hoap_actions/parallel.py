@@ -8,9 +8,13 @@ process, ``workers`` local processes, or Ray actors on one machine or a cluster.
 
 from __future__ import annotations
 
+import collections
 import multiprocessing
+import os
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any, TypeVar
 
 from hoap_actions.errors import InvalidInputError
@@ -20,6 +24,11 @@ Result = TypeVar("Result")
 
 LOCAL_RAY = "local"
 """``ray_address`` that starts a Ray instance on this machine (instead of joining a cluster)."""
+JOBS_AHEAD_PER_WORKER = 2
+"""Jobs handed to the local processes ahead of the one awaited, per process: enough to keep them busy,
+few enough that stopping a sweep never waits for a queue of thousands."""
+PARENT_CHECK_S = 0.5
+"""How often a worker process checks that the process that started it is still there."""
 
 
 def ordered_map(
@@ -36,9 +45,15 @@ def ordered_map(
     of the cluster when ``workers`` is 1, never more than its CPUs). Each process or actor first runs
     ``initializer(*initargs)``, which sets up what ``function`` uses (an env, a scene); both must be
     importable module-level functions. Processes are spawned, not forked: PyBullet and placo do not
-    survive a fork."""
+    survive a fork. Local processes are given a few jobs at a time; if the caller stops early (an
+    error, Ctrl-C, SIGTERM turned into KeyboardInterrupt) they are ended at once, and a process whose
+    parent died ends itself. More local processes than this machine's CPUs are refused."""
     if ray_address is not None:
         return _ray_map(function, jobs, initializer, initargs, workers, ray_address)
+    cpus = os.cpu_count() or 1
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= cpus:
+        raise InvalidInputError(f"workers must be an int in 1..{cpus} (this machine's CPUs); got {workers!r} "
+                                "(on a Ray cluster, --ray takes more)")
     return _process_map(function, jobs, initializer, initargs, workers)
 
 
@@ -52,8 +67,56 @@ def check_ray_address(address: object) -> str:
 
 def _process_map(function, jobs, initializer, initargs, workers) -> Iterator:
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=initializer, initargs=initargs) as pool:
-        yield from pool.map(function, jobs)
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_watched_worker,
+                               initargs=(os.getpid(), initializer, initargs))
+    pending: collections.deque[Future] = collections.deque()
+    queue = iter(jobs)
+    finished = False
+    try:
+        for job in queue:
+            pending.append(pool.submit(function, job))
+            if len(pending) >= JOBS_AHEAD_PER_WORKER * workers:
+                break
+        while pending:
+            result = pending.popleft().result()
+            for job in queue:  # keep the window full: one new job for each one done
+                pending.append(pool.submit(function, job))
+                break
+            yield result
+        finished = True
+    finally:
+        if finished:
+            pool.shutdown(wait=True)
+        else:  # stopped early: nothing queued runs, and the running jobs are not waited for
+            _end_workers(pool)
+
+
+def _end_workers(pool: ProcessPoolExecutor) -> None:
+    """Cancel what is queued and terminate the pool's processes now (the executor's own API from Python
+    3.14 on; before it, its process table, which ``shutdown`` forgets, is read first)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()  # cancels what is queued, terminates the processes, shuts the executor down
+        return
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    deadline = time.monotonic() + 2.0
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+
+
+def _start_watched_worker(parent: int, initializer: Callable[..., None], initargs: tuple) -> None:
+    """A worker's start: a thread that ends the process once its parent is gone (killed, crashed), then
+    the caller's ``initializer``."""
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="hoap-actions-parent-watch", daemon=True).start()
+    initializer(*initargs)
 
 
 class _RayWorker:

@@ -1,0 +1,73 @@
+"""A sweep stops when it is told to: SIGINT or SIGTERM ends `hoap-actions demo --workers 2` within
+seconds with exit status 130, no worker left and no partial output; a killed parent takes its workers
+with it. Child processes, as a user's terminal would run them."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+DEMO = [sys.executable, "-m", "hoap_actions", "demo", "--episodes", "1000", "--workers", "2"]
+STOP_WITHIN_S = 3.0  # measured 0.2-0.3 s on 2 cores; the margin is for a loaded CI machine
+
+
+def _group_gone(pid: int, within: float) -> bool:
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.fixture
+def cleanup():
+    started = []
+    yield started
+    for proc in started:
+        with contextlib.suppress(ProcessLookupError):  # a failed test leaves no process behind either
+            os.killpg(proc.pid, signal.SIGKILL)
+
+
+@pytest.mark.parametrize("sig, after_s", [(signal.SIGINT, 1.0), (signal.SIGTERM, 6.0), (signal.SIGINT, 9.0)],
+                         ids=["SIGINT-at-start", "SIGTERM-mid-sweep", "SIGINT-mid-sweep"])
+def test_a_signal_stops_the_sweep_at_once(tmp_path: Path, sig, after_s, cleanup):
+    report = tmp_path / "report.json"
+    proc = subprocess.Popen([*DEMO, "--json", str(report)], cwd=tmp_path, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    cleanup.append(proc)
+    time.sleep(after_s)
+    sent = time.monotonic()
+    proc.send_signal(sig)
+    proc.wait(timeout=60)
+    stopped = time.monotonic() - sent
+    assert proc.returncode == 130, proc.stderr.read()[-1000:]
+    assert stopped < STOP_WITHIN_S, stopped
+    assert _group_gone(proc.pid, STOP_WITHIN_S), "a worker outlived the sweep"
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no report, no partial
+    assert "interrupted" in proc.stderr.read()
+
+
+def test_a_killed_parent_takes_its_workers_with_it(tmp_path: Path, cleanup):
+    proc = subprocess.Popen(DEMO, cwd=tmp_path, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    cleanup.append(proc)
+    time.sleep(8.0)  # the workers are running episodes
+    proc.kill()
+    proc.wait(timeout=10)
+    assert _group_gone(proc.pid, STOP_WITHIN_S), "workers outlived their parent"
+
+
+def test_more_local_workers_than_cpus_are_refused_before_any_work(tmp_path: Path):
+    too_many = (os.cpu_count() or 1) + 1
+    run = subprocess.run([*DEMO[:-1], str(too_many)], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and "this machine's CPUs" in run.stderr, run.stderr[-500:]
