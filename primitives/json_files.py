@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from hoap_actions.errors import DataFileError
+from hoap_actions.inputs import MAX_JSON_BYTES, checked_input_file
 from hoap_actions.outputs import claimed_file
 
 
@@ -29,14 +30,14 @@ def write_json_model(path: str | os.PathLike, kind: str, version: int, body: dic
 
 def read_json_model(path: str | os.PathLike, kind: str) -> dict[str, Any]:
     """The JSON object in a file written by :func:`write_json_model` (``kind`` names it in errors)."""
-    path = Path(path)
     label = f"{kind} file"
+    path = checked_input_file(path, label, MAX_JSON_BYTES)
     try:
         document = json.loads(path.read_text())
-    except FileNotFoundError as exc:
-        raise DataFileError(f"no {label} at {path}") from exc
     except (OSError, ValueError) as exc:
         raise DataFileError(f"{path} is not a readable JSON {label}: {exc}") from exc
+    except RecursionError:  # nesting deeper than any file this project writes
+        raise DataFileError(f"{path} is not a {label}: its JSON is nested too deeply") from None
     if not isinstance(document, dict):
         raise DataFileError(f"{path} is not a {label}: it holds a JSON {type(document).__name__}, not an object")
     return document

@@ -64,6 +64,9 @@ __all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]
 # on a validation recording, docs/experiments/tracking.md): sharper, the particles agree on a goal before
 # the arm shows it
 OBSERVATION_SIGMA = 0.8
+# Most particles a tracker takes: 250 times the paper's 400. Every particle's body is projected and
+# scored in every frame; ten million of them took 6 GB before the first frame was done.
+MAX_PARTICLES = 100_000
 END_DIFFUSION_M = 0.005  # m per frame, std of the end point's Brownian step at a class's first state
 END_DIFFUSION_FLOOR = 0.1  # share of that step left at the chain's last state (cooling, never frozen)
 NEW_END_SPREAD_M = 0.05  # m, jitter around a training effect when a particle starts a class
@@ -191,8 +194,9 @@ class ActionTracker:
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  random_state: int | np.random.Generator | None = None) -> None:
         check_is_fitted(models)
-        if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles < 1:
-            raise InvalidInputError(f"n_particles must be an int >= 1; got {n_particles!r}")
+        if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
+                or not 1 <= n_particles <= MAX_PARTICLES):
+            raise InvalidInputError(f"n_particles must be an int in 1..{MAX_PARTICLES}; got {n_particles!r}")
         if not (observation_sigma > 0 and silhouette_sigma > 0 and end_diffusion_m >= 0):
             raise InvalidInputError("observation_sigma and silhouette_sigma must be > 0 and end_diffusion_m >= 0")
         if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):

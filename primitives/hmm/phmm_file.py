@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.inputs import checked_input_file
 from hoap_actions.outputs import claimed_file
 from hoap_actions.primitives.hmm.effect_features import ThinPlateFeatures
 from hoap_actions.primitives.hmm.hmm_math import precision_cholesky
@@ -65,6 +66,9 @@ _OTHER_SIGNATURES = (
     (b"\x93NUMPY", "a single .npy array, not an .npz archive"),
 )
 _SNIFF_BYTES = 16
+MAX_NPZ_BYTES = 2**30  # the largest archive read: a 40-state full-covariance PHMM is a few MB
+MAX_ARRAY_BYTES = 2**30  # what its entries may declare in all
+_HEADER_READERS = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
 _ACCEPTED_FILES = "ParametricHMM.load reads the .npz archives written by ParametricHMM.save"
 # Entries stored under another name than their attribute (the file format is older than the name phi).
 _TRAIN_PHI_ENTRY = {1: "train_params_", 2: "train_params_", 3: "train_params_", 4: "train_phi_"}
@@ -233,6 +237,7 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     Other files are told apart by their first bytes first, so the error says what the file looks
     like instead of numpy's guess that it might be pickled data.
     """
+    checked_input_file(path, "ParametricHMM file", MAX_NPZ_BYTES)
     try:
         with open(path, "rb") as fh:
             head = fh.read(_SNIFF_BYTES)
@@ -243,6 +248,7 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
                             f"{_ACCEPTED_FILES}")
     arrays: dict[str, np.ndarray] = {}
     try:
+        _check_declared_sizes(path)
         with np.load(path, allow_pickle=False) as data:
             for key in data.files:
                 try:
@@ -255,6 +261,26 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
         raise DataFileError(f"{path} is not a readable ParametricHMM .npz file (truncated or corrupt?): {exc}") from exc
     return arrays
+
+
+def _check_declared_sizes(path: Path) -> None:
+    """Refuse an archive whose entries' headers declare more than :data:`MAX_ARRAY_BYTES` in all: numpy
+    would try to allocate it before finding the data missing."""
+    declared = 0
+    with zipfile.ZipFile(path) as archive:
+        for member in archive.infolist():
+            with archive.open(member) as stream:
+                version = np.lib.format.read_magic(stream)
+                read_header = _HEADER_READERS.get(version)
+                if read_header is None:
+                    raise DataFileError(f"{path}: entry {member.filename} is a .npy of version {version}; "
+                                        f"{_ACCEPTED_FILES} (versions {sorted(_HEADER_READERS)})")
+                shape, _, dtype = read_header(stream)
+            declared += int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if declared > MAX_ARRAY_BYTES:
+                raise DataFileError(f"{path}: entry {member.filename} declares arrays of {declared / 2**30:.1f} GiB "
+                                    f"in all, more than a ParametricHMM has ({MAX_ARRAY_BYTES / 2**30:.0f} GiB at "
+                                    f"most); {_ACCEPTED_FILES}")
 
 
 def _describe_file(head: bytes) -> str:

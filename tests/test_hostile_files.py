@@ -1,0 +1,59 @@
+"""Files that would make a reader run away or crash: a link to a device that never ends, archives whose
+headers declare huge arrays, JSON nested past Python's recursion limit, and particle counts no
+machine holds. Each is refused with the project's error before anything large is read or allocated."""
+
+from __future__ import annotations
+
+import io
+import os
+import zipfile
+
+import numpy as np
+import pytest
+
+from hoap_actions.apps.cli import main
+from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.models.shipped import load_default_models
+from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
+from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
+from hoap_actions.tracking.action_tracker import MAX_PARTICLES, ActionTracker
+from hoap_actions.vision.body_model import BodyModel
+
+
+def test_a_model_file_linked_to_a_device_is_refused(tmp_path):
+    link = tmp_path / "discovery.json"
+    os.symlink("/dev/zero", link)
+    with pytest.raises(DataFileError, match="not a file"):
+        PrimitiveDiscovery.load(link)
+
+
+def test_json_nested_past_the_recursion_limit_is_refused(tmp_path):
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(DataFileError, match="nested too deeply"):
+        PrimitiveDiscovery.load(path)
+
+
+def test_an_archive_declaring_a_trillion_floats_is_refused_before_numpy_allocates(tmp_path):
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (10**12,)})
+    path = tmp_path / "huge.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("W_.npy", header.getvalue())  # the header alone: no data follows
+    with pytest.raises(DataFileError, match="declares arrays of"):
+        ParametricHMM.load(path)
+
+
+def test_the_command_line_refuses_a_device_as_models(tmp_path, capsys):
+    folder = tmp_path / "models"
+    folder.mkdir()
+    os.symlink("/dev/zero", folder / "manifest.json")
+    assert main(["recognize", "--demos", str(tmp_path / "none.h5"), "--models", str(folder)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_a_tracker_refuses_more_particles_than_it_can_hold():
+    models = load_default_models()
+    body = BodyModel(models.marker_names_, torso_base=np.zeros(3))
+    with pytest.raises(InvalidInputError, match=f"1..{MAX_PARTICLES}"):
+        ActionTracker(models, body, [], n_particles=10_000_000)
