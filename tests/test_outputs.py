@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from hoap_actions.errors import DataExistsError, InvalidInputError
@@ -96,3 +98,23 @@ def test_a_path_with_a_nul_character_is_refused(tmp_path, claim):
     with pytest.raises(InvalidInputError, match="NUL character"):
         with claim(str(tmp_path / "a\0b")):
             raise AssertionError("the job must not start")
+
+
+def test_files_a_killed_run_had_begun_to_publish_are_taken_back(tmp_path):
+    """A run killed while publishing (its lock gone with it) left a.json published, b.json still staged
+    and c.json linked but not yet unlinked from the staging folder; the next claim starts afresh."""
+    names = ["a.json", "b.json", "c.json"]
+    (tmp_path / "mine.txt").write_text("not the run's")
+    staging = tmp_path / f".results{PARTIAL_MARK}"
+    staging.mkdir()
+    (staging / ".publishing").write_text("\n".join(names))
+    (tmp_path / "a.json").write_text("old a")
+    (staging / "b.json").write_text("old b")
+    (staging / "c.json").write_text("old c")
+    os.link(staging / "c.json", tmp_path / "c.json")
+    with claimed_files(tmp_path, names, what="results") as fresh:
+        assert sorted(p.name for p in fresh.iterdir()) == []
+        for name in names:
+            (fresh / name).write_text("new")
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == {"a.json": "new", "b.json": "new", "c.json": "new",
+                                                                    "mine.txt": "not the run's"}

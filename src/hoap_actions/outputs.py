@@ -224,6 +224,8 @@ def claimed_files(
     staging folder to write them to; all of them are published together on success.
 
     The same checks as :func:`claimed_file`; a folder this call created is removed again if the job fails.
+    Publishing is journalled in the staging folder, so the files a killed run had published are taken
+    back by the next claim, never left to block it.
     """
     folder = _path_text(folder, what, f"out/{what.replace(' ', '-')}")
     if folder.exists() and not folder.is_dir():
@@ -234,6 +236,7 @@ def claimed_files(
     published: list[Path] = []
     try:
         claim = _Claim(folder, folder / f".{what.replace(' ', '-')}{PARTIAL_MARK}", folder=True, what=what)
+        _take_back_interrupted_publishing(claim.partial, folder)
         existing = [name for name in names if (folder / name).exists()]
         if existing and not overwrite:
             raise DataExistsError(
@@ -242,6 +245,7 @@ def claimed_files(
             )
         _sweep_stale_partials(folder, keep=claim.partial)
         yield claim.partial
+        (claim.partial / _JOURNAL).write_text("\n".join(names))
         for name in names:
             _publish(claim.partial / name, folder / name, overwrite, what)
             published.append(folder / name)
@@ -257,6 +261,23 @@ def claimed_files(
         if created:
             with contextlib.suppress(OSError):
                 folder.rmdir()  # only succeeds if this run left it empty
+
+
+_JOURNAL = ".publishing"  # in a claimed_files staging folder: the names being published
+
+
+def _take_back_interrupted_publishing(staging: Path, folder: Path) -> None:
+    """Remove the files a killed run had begun to publish from ``staging`` (its journal names them), and
+    what it left in ``staging``: the claim now held starts afresh."""
+    journal = staging / _JOURNAL
+    if journal.is_file():
+        for name in journal.read_text().split("\n"):
+            source, target = staging / name, folder / name
+            if name and target.exists() and (not source.exists() or os.path.samefile(source, target)):
+                target.unlink()  # published (or being linked) when the run was killed
+                logger.info("removed %s, published by an interrupted run", target)
+    for leftover in staging.iterdir():
+        shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
 
 
 @contextlib.contextmanager
