@@ -76,6 +76,7 @@ _READABLE_VERSIONS = (1, 2, 3)
 # episode's marker frames, gap filling would invent the movement rather than bridge it.
 MAX_MISSING_FRACTION = 0.2
 N_MARKERS = 6
+MAX_FPS = 10_000.0  # frames per second: motion capture records at 100-1000
 ROTATION_CONVENTION = (
     "O[:, 3:] = scipy Rotation.as_rotvec() of the object orientation in the scene frame (rad, |angle| <= pi)"
 )
@@ -363,6 +364,19 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
     names = sorted(name for name in f if name.startswith("episode_"))
     if len(names) != int(header["episodes"]):
         raise DataFileError(f"{path}: {len(names)} episode groups but the header says {int(header['episodes'])}")
+    fps = header["fps"]
+    if isinstance(fps, (bool, np.bool_)) or not isinstance(fps, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(fps) or not 0 < fps <= MAX_FPS:
+        raise DataFileError(f"{path}: attribute fps is {fps!r}; accepted: frames per second in (0, {MAX_FPS:g}]")
+    documents = {}
+    for name in ("scene", "generator"):
+        try:
+            documents[name] = json.loads(header[name])
+        except (TypeError, ValueError, RecursionError):
+            documents[name] = None
+        if not isinstance(documents[name], dict):
+            raise DataFileError(f"{path}: attribute {name} is not a JSON object; accepted: the object "
+                                f"write_demonstrations stores")
     episodes = []
     for name in names:
         if not isinstance(f[name], h5py.Group):
@@ -370,12 +384,12 @@ def _read(f: h5py.File, path: Path) -> Demonstrations:
         episodes.append(_read_episode(f[name], f"{path}:{name}", phase_names, len(joint_names), gaps))
     return Demonstrations(
         episodes=tuple(episodes),
-        fps=float(header["fps"]),
+        fps=float(fps),
         marker_names=marker_names,
         phase_names=phase_names,
         seed=int(header["seed"]),
-        scene=json.loads(header["scene"]),
-        generator=json.loads(header["generator"]),
+        scene=documents["scene"],
+        generator=documents["generator"],
         joint_names=joint_names,
         noise=noise,
     )

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from hoap_actions.apps.cli import main
+from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.errors import DataFileError, InvalidInputError
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
@@ -57,3 +58,29 @@ def test_a_tracker_refuses_more_particles_than_it_can_hold():
     body = BodyModel(models.marker_names_, torso_base=np.zeros(3))
     with pytest.raises(InvalidInputError, match=f"1..{MAX_PARTICLES}"):
         ActionTracker(models, body, [], n_particles=10_000_000)
+
+
+def _edited(small_recording, tmp_path, attribute, value):
+    import shutil
+
+    import h5py
+
+    path = tmp_path / "edited.h5"
+    shutil.copyfile(small_recording, path)
+    with h5py.File(path, "r+") as f:
+        f.attrs[attribute] = value
+    return path
+
+
+@pytest.mark.parametrize("fps", [0.0, -100.0, float("nan"), 1e9])
+def test_a_recording_with_an_impossible_frame_rate_is_refused(small_recording, tmp_path, fps, capsys):
+    path = _edited(small_recording, tmp_path, "fps", fps)
+    with pytest.raises(DataFileError, match="fps"):
+        load_demonstrations(path)
+    assert main(["discover", "--demos", str(path), "--out", str(tmp_path / "out")]) == 2
+    assert "fps" in capsys.readouterr().err
+
+
+def test_a_generator_attribute_that_is_not_an_object_is_refused(small_recording, tmp_path):
+    with pytest.raises(DataFileError, match="generator is not a JSON object"):
+        load_demonstrations(_edited(small_recording, tmp_path, "generator", "[1, 2]"))
