@@ -19,10 +19,9 @@ import threading
 from pathlib import Path
 from typing import NoReturn
 
-import numpy as np
-
 from hoap_actions import ENV_IDS, __version__
 from hoap_actions.apps.episodes import compare_policies, film_episode, summarise
+from hoap_actions.apps.videos import write_video
 from hoap_actions.demonstration.bodies import DEMONSTRATORS
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.scene import CAMERAS
@@ -281,12 +280,8 @@ def _track(args: argparse.Namespace) -> int:
                         "models": str(args.models or "shipped default models"), **summary}
             claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
         if "video" in claimed:
-            import imageio.v3 as iio
-
             body = BodyModel(models.marker_names_, torso_base=result.torso_base)
-            with open(claimed["video"], "wb") as fh:
-                iio.imwrite(fh, np.stack(tracking_video_frames(result, body)), extension=".mp4", fps=demos.fps / 4,
-                            codec="libx264", macro_block_size=1)
+            write_video(claimed["video"], tracking_video_frames(result, body), demos.fps / 4)
         if "figure" in claimed:
             effect_figure(result, claimed["figure"], demos.fps)
     rms = summary["rms_m"]
@@ -456,6 +451,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"hoap-actions {args.command}: interrupted; no partial output was kept", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except OSError as error:  # the machine, not the input: a full disk, a file that vanished, no permission
+        where = f" ({error.filename})" if error.filename else ""
+        print(f"hoap-actions {args.command}: error: {error.strerror or error}{where}; no partial output was kept",
+              file=sys.stderr)
+        return EXIT_USAGE
     finally:
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous)

@@ -16,6 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.apps.videos import write_video
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.parallel import ordered_map
 from hoap_actions.seeds import check_seed
@@ -121,7 +122,7 @@ def film_episode(
     if snapshot:
         iio.imwrite(snapshot, figure if figure is not None else frames[0])
     if video:
-        iio.imwrite(video, np.stack(frames), fps=env.metadata["render_fps"], codec="libx264", macro_block_size=1)
+        write_video(video, frames, env.metadata["render_fps"])
     return result
 
 

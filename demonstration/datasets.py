@@ -64,7 +64,7 @@ import h5py
 import numpy as np
 
 from hoap_actions.errors import DataFileError, HoapActionsError, InvalidInputError
-from hoap_actions.outputs import claimed_file
+from hoap_actions.outputs import claimed_file, write_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -277,8 +277,9 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
     gaps = demos.has_gaps
     for index, episode in enumerate(demos.episodes):
         _check_episode(index, episode, len(demos.phase_names), len(demos.joint_names), gaps)
-    # HDF5 locks files with flock too; the claim already holds this one exclusively
-    with h5py.File(file, "w", track_order=True, locking=False) as f:
+    # The file is made in memory and written with Python's own I/O: a disk that fills up is an OSError
+    # here, where HDF5 writing to it would fail its close and abort the process.
+    with h5py.File(Path(file).name, "w", driver="core", backing_store=False, track_order=True) as f:
         f.attrs.update(
             format=FORMAT,
             format_version=EXACT_FORMAT_VERSION if demos.exact else FORMAT_VERSION,
@@ -298,6 +299,9 @@ def write_hdf5(file: Path | str, demos: Demonstrations) -> None:
             f.attrs["noise"] = json.dumps(demos.noise, sort_keys=True)
         for index, episode in enumerate(demos.episodes):
             _write_episode(f.create_group(f"episode_{index:05d}"), episode)
+        f.flush()
+        image = f.id.get_file_image()
+    write_bytes(file, image, "dataset")
 
 
 def _write_episode(group: h5py.Group, episode: Episode) -> None:

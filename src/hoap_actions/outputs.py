@@ -38,7 +38,7 @@ logger = logging.getLogger(__name__)
 
 PARTIAL_MARK = ".hoap-partial"
 
-__all__ = ["PARTIAL_MARK", "check_output_path", "claimed_directory", "claimed_file", "claimed_files"]
+__all__ = ["PARTIAL_MARK", "check_output_path", "claimed_directory", "claimed_file", "claimed_files", "write_bytes"]
 
 
 def _path_text(path: str | os.PathLike, what: str, example: str) -> Path:
@@ -59,6 +59,19 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
     if path.name in ("", ".", ".."):
         raise InvalidInputError(f"the {what} path {path} does not name a file")
     return path
+
+
+def write_bytes(path: str | os.PathLike, data: bytes, what: str) -> None:
+    """Write ``data`` to ``path`` (a claimed partial) and make sure it reached the disk: a full disk or
+    any other write error is an :class:`OutputPathError` naming the file and the cause."""
+    try:
+        with open(path, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as exc:
+        raise OutputPathError(f"could not write the {what} {path}: {exc.strerror or exc}; free some space or "
+                              "choose another folder") from None
 
 
 def _make_folder(folder: Path, what: str) -> None:
