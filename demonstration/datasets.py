@@ -76,6 +76,7 @@ _READABLE_VERSIONS = (1, 2, 3)
 # episode's marker frames, gap filling would invent the movement rather than bridge it.
 MAX_MISSING_FRACTION = 0.2
 N_MARKERS = 6
+MAX_ENTRY_BYTES = 2**30  # one episode array: an hour at 1 kHz of 18 float64 coordinates is 0.5 GB
 MAX_FPS = 10_000.0  # frames per second: motion capture records at 100-1000
 ROTATION_CONVENTION = (
     "O[:, 3:] = scipy Rotation.as_rotvec() of the object orientation in the scene frame (rad, |angle| <= pi)"
@@ -467,6 +468,10 @@ def _entry(group: h5py.Group, name: str, where: str) -> np.ndarray:
     if not isinstance(entry, h5py.Dataset):
         problem = "is missing" if entry is None else "is a group, not an array"
         raise DataFileError(f"{where}: entry {name} {problem}; every episode holds {', '.join(_EPISODE_ARRAYS)}")
+    declared = int(np.prod(entry.shape, dtype=object)) * entry.dtype.itemsize
+    if declared > MAX_ENTRY_BYTES:  # refused before h5py allocates it
+        raise DataFileError(f"{where}: entry {name} declares {declared / 2**30:.1f} GiB (shape {entry.shape}); an "
+                            f"episode's arrays are at most {MAX_ENTRY_BYTES / 2**30:.0f} GiB")
     return entry[()]
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import os
+import time
 import zipfile
 
 import numpy as np
@@ -84,3 +85,25 @@ def test_a_recording_with_an_impossible_frame_rate_is_refused(small_recording, t
 def test_a_generator_attribute_that_is_not_an_object_is_refused(small_recording, tmp_path):
     with pytest.raises(DataFileError, match="generator is not a JSON object"):
         load_demonstrations(_edited(small_recording, tmp_path, "generator", "[1, 2]"))
+
+
+def test_an_episode_array_declaring_terabytes_is_refused_before_it_is_read(small_recording, tmp_path):
+    import shutil
+
+    import h5py
+
+    path = tmp_path / "huge.h5"
+    shutil.copyfile(small_recording, path)
+    with h5py.File(path, "r+") as f:
+        del f["episode_00000/H"]
+        f["episode_00000"].create_dataset("H", shape=(10**12, 6, 3), dtype="f8", chunks=(1000, 6, 3))
+    with pytest.raises(DataFileError, match="declares"):
+        load_demonstrations(path)
+
+
+def test_an_output_that_is_a_dangling_link_is_refused_before_any_work(tmp_path, capsys):
+    os.symlink(tmp_path / "nowhere" / "x.h5", tmp_path / "out.h5")
+    started = time.monotonic()
+    assert main(["record", "--preset", "paper", "--out", str(tmp_path / "out.h5")]) == 2
+    assert time.monotonic() - started < 5.0  # refused at the claim, not after a recording
+    assert "does not exist" in capsys.readouterr().err

@@ -58,6 +58,9 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
         raise InvalidInputError(f"the {what} path {path} is a directory; give a file name inside it")
     if path.name in ("", ".", ".."):
         raise InvalidInputError(f"the {what} path {path} does not name a file")
+    if path.is_symlink() and not path.exists():
+        raise OutputPathError(f"the {what} path {path} is a link to {os.readlink(path)}, which does not exist; give "
+                              "the file's own path")
     return path
 
 
