@@ -14,10 +14,12 @@ from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.demonstration.mocap import NOISE_MODELS, MocapNoise, add_mocap_noise, parse_noise
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.pipelines.mocap_cleaning import (
+    NOISE_FLOOR_M,
     NoiseAboveDeclaredWarning,
     clean_demonstrations,
     fill_gaps,
     lowpass,
+    measured_jitter,
 )
 
 FPS = 100.0
@@ -142,3 +144,22 @@ def test_record_command_takes_a_noise_model(tmp_path, capsys):
         main(["record", "--preset", "small", "--out", str(tmp_path / "x.h5"), "--noise", "loud"])
     assert exit_info.value.code == 2 and "unknown noise model 'loud'" in capsys.readouterr().err
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_noise_nobody_declared_is_measured_and_cleaned(small_demos):
+    """An exact recording passes unchanged; the same with 1 mm / 1 degree added after recording (the file
+    still says exact) is measured as noisy, cleaned, and a warning says so."""
+    assert small_demos.exact and measured_jitter(small_demos) < NOISE_FLOOR_M
+    assert clean_demonstrations(small_demos) is small_demos
+    noise = parse_noise("marker=1,object=1,angle=1")
+    episodes = []
+    for i, e in enumerate(small_demos.episodes):
+        H, O = add_mocap_noise(e.H, e.O, noise, small_demos.fps, 99, i)
+        episodes.append(dataclasses.replace(e, H=H, O=O))
+    noisy = dataclasses.replace(small_demos, episodes=tuple(episodes))
+    assert noisy.exact and measured_jitter(noisy) > 2 * NOISE_FLOOR_M
+    with pytest.warns(NoiseAboveDeclaredWarning, match="declares no noise"):
+        cleaned = clean_demonstrations(noisy)
+    assert measured_jitter(cleaned) < NOISE_FLOOR_M / 2
+    for clean, raw, truth in zip(cleaned.episodes, noisy.episodes, small_demos.episodes):
+        assert np.abs(clean.O[:, :3] - truth.O[:, :3]).mean() < np.abs(raw.O[:, :3] - truth.O[:, :3]).mean()
