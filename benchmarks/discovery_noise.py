@@ -137,9 +137,13 @@ def main(argv: list[str] | None = None) -> dict:
         if seed == args.seeds[0]:
             shuffled = order_figures(demos, args.merging, args.shuffles)
         line = ", ".join(f"{m}: {'structure' if r['structure_found'] else 'NOT'} {r['n_action_groups']} groups "
-                         f"{r['frame_accuracy']:.2%}" for m, r in per_recording[seed].items() if isinstance(r, dict))
+                         f"{r['frame_accuracy']:.2%}" for m, r in per_recording[seed].items() if m in args.merging)
         print(f"seed {seed}: {line}; baselines rest {per_recording[seed]['rest_baseline_frame_accuracy']:.2%}, "
               f"k-means {per_recording[seed]['kmeans_baseline_frame_accuracy']:.2%}", flush=True)
+        if args.undeclared:
+            print("  read as declared (not cleaned): " + ", ".join(
+                f"{m}: {r['n_action_groups']} groups {r['frame_accuracy']:.2%}"
+                for m, r in trusting.items() if m in args.merging), flush=True)
     summary = {}
     for merging in args.merging:
         rows = [r[merging] for r in per_recording.values()]
