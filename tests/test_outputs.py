@@ -118,3 +118,16 @@ def test_files_a_killed_run_had_begun_to_publish_are_taken_back(tmp_path):
             (fresh / name).write_text("new")
     assert {p.name: p.read_text() for p in tmp_path.iterdir()} == {"a.json": "new", "b.json": "new", "c.json": "new",
                                                                     "mine.txt": "not the run's"}
+
+
+def test_a_folder_claim_and_a_files_claim_on_one_folder_exclude_each_other(tmp_path):
+    target = tmp_path / "out"
+    with claimed_files(target, ["a.json"], what="results") as staging:
+        (staging / "a.json").write_text("1")
+        with pytest.raises(DataExistsError, match="another process is writing into"):
+            with claimed_directory(target, overwrite=True, foreign=lambda folder: []):
+                raise AssertionError("the job must not start")
+    with claimed_directory(tmp_path / "models") as staging:
+        with pytest.raises(DataExistsError, match="another process is writing into"):
+            with claimed_files(tmp_path / "models", ["a.json"], what="results"):
+                raise AssertionError("the job must not start")

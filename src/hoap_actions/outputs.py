@@ -150,6 +150,32 @@ class _Claim:
         os.close(self._fd)
 
 
+def _held(partial: Path) -> bool:
+    """Whether a live process holds the claim ``partial`` (its lock is taken)."""
+    if fcntl is None or not partial.exists():
+        return False
+    try:
+        fd = os.open(partial, os.O_RDONLY | (os.O_DIRECTORY if partial.is_dir() else 0))
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
+def _refuse_if_other_claim(target: Path, partials: list[Path], what: str) -> None:
+    """Refuse ``target`` while another kind of claim on the same folder is held (a whole-folder claim
+    beside it, or a claim of files inside it): one command's output must not mix with another's."""
+    for partial in partials:
+        if _held(partial):
+            raise DataExistsError(f"another process is writing into {target} (its partial {partial.name} is "
+                                  "locked); wait for it to finish or choose another folder")
+
+
 def _sweep_stale_partials(folder: Path, keep: Path) -> None:
     """Remove partials in ``folder`` whose lock is free: what killed runs left behind."""
     if fcntl is None:
@@ -252,6 +278,7 @@ def claimed_files(
     published: list[Path] = []
     try:
         claim = _Claim(folder, folder / f".{what.replace(' ', '-')}{PARTIAL_MARK}", folder=True, what=what)
+        _refuse_if_other_claim(folder, [folder.with_name(f".{folder.name}{PARTIAL_MARK}")], what)
         _take_back_interrupted_publishing(claim.partial, folder)
         existing = [name for name in names if (folder / name).exists()]
         if existing and not overwrite:
@@ -320,6 +347,8 @@ def claimed_directory(path: str | os.PathLike, overwrite: bool = False, what: st
             raise DataExistsError(f"{path} holds what is not {what} ({shown}); --overwrite (overwrite=True) replaces "
                                   f"only a folder of {what}: give a new or empty folder")
     with _claimed(path, path.with_name(f".{path.name}{PARTIAL_MARK}"), True, overwrite, what) as staging:
+        if path.is_dir():
+            _refuse_if_other_claim(path, sorted(path.glob(f".*{PARTIAL_MARK}*")), what)
         for leftover in staging.iterdir():  # a killed run's files: start afresh
             shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
         yield staging
