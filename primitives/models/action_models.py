@@ -133,14 +133,26 @@ class ActionModels(ActionDecoding, Estimator):
         time-stretch factors (in [0.5, 2]); every class's training movement is also
         fitted as if performed that many times as long (resampled in time), so that the chains accept a
         demonstrator slower or faster than those seen. ``()`` (default): none.
+    progress
+        show a bar over the class fits when stderr is a terminal (not saved with the models).
 
-    Learned attributes: ``classes_`` (dict id -> :class:`ClassModel`), ``grammar_``,
-    ``discovery_``, ``fps_``, ``marker_names_``, ``covars_prior_``; the action level ``actions_``
-    (dict id -> :class:`ClassModel` of a whole action), ``action_lifts_`` (dict id -> the highest
-    lift, m, of the object in its runs) and ``action_of_class_`` (dict class id -> the whole action
-    its pieces belong to), all empty without it; ``demonstrators_``, the profiles of who demonstrated
-    (empty: not known); ``grasp_offset_`` (3,), the object's centre in the hand's frame while the hand
-    moves it (m; ``None`` when learned without object poses).
+    Attributes
+    ----------
+    classes_
+        dict class id -> :class:`ClassModel`.
+    grammar_, discovery_
+        the :class:`ActionGrammar` of the classes and the :class:`PrimitiveDiscovery` they came from.
+    fps_, marker_names_, covars_prior_
+        the recordings' frame rate and markers, and the manipulation classes' variance prior.
+    actions_, action_lifts_, action_of_class_
+        the action level: dict id -> :class:`ClassModel` of a whole action, dict id -> the highest lift
+        (m) of the object in its runs, dict class id -> the whole action its pieces belong to; all
+        empty without object poses.
+    demonstrators_
+        the profiles of who demonstrated (empty: not known).
+    grasp_offset_
+        (3,) the object's centre in the hand's frame while the hand moves it (m; ``None`` when learned
+        without object poses).
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
