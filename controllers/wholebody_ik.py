@@ -233,6 +233,9 @@ class WholeBodyIK:
             # inside: this also bounds how fast the commanded CoM may head for the polygon's edge.
             self._polygon.dcm = True
             self._polygon.omega = float(np.sqrt(9.81 / COM_HEIGHT))
+            # placo keeps every array it is given as a polygon: new arrays at each reset grew the process by
+            # about 1 kB a reset, so the corners are written into arrays kept per corner count
+            self._polygon_points: dict[int, list[np.ndarray]] = {}
             self._com = solver.add_com_task(np.zeros(3))
             self._com.mask.set_axises("xy")
             self._com.configure("com_xy", "soft", float(com_weight))
@@ -313,7 +316,10 @@ class WholeBodyIK:
                     corners.append((T_sole @ np.array([sx * SOLE_HALF[0], sy * SOLE_HALF[1], 0.0, 1.0]))[:2])
         corners = np.array(corners)
         self.polygon = corners[ConvexHull(corners).vertices[::-1]]  # scipy gives counter-clockwise
-        self._polygon.polygon = [p for p in self.polygon]
+        points = self._polygon_points.setdefault(len(self.polygon), [np.zeros(2) for _ in self.polygon])
+        for point, corner in zip(points, self.polygon):
+            point[:] = corner
+        self._polygon.polygon = points
         T_pelvis = robot.get_T_world_frame(PELVIS)
         self._pelvis.R_world_frame = T_pelvis[:3, :3]
         self._pelvis_xy.target_world = T_pelvis[:3, 3]
