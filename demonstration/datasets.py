@@ -64,6 +64,7 @@ import h5py
 import numpy as np
 
 from hoap_actions.errors import DataFileError, HoapActionsError, InvalidInputError
+from hoap_actions.inputs import checked_input_file
 from hoap_actions.outputs import claimed_file, write_bytes
 
 logger = logging.getLogger(__name__)
@@ -76,6 +77,7 @@ _READABLE_VERSIONS = (1, 2, 3)
 # episode's marker frames, gap filling would invent the movement rather than bridge it.
 MAX_MISSING_FRACTION = 0.2
 N_MARKERS = 6
+MAX_RECORDING_BYTES = 64 * 2**30  # a whole recording file: hours of motion capture fit well under it
 MAX_ENTRY_BYTES = 2**30  # one episode array: an hour at 1 kHz of 18 float64 coordinates is 0.5 GB
 MAX_FPS = 10_000.0  # frames per second: motion capture records at 100-1000
 ROTATION_CONVENTION = (
@@ -336,9 +338,7 @@ def load_demonstrations(path: Path | str) -> Demonstrations:
     rotation vectors longer than pi; the message names the file, the episode, the entry and (for
     values) the first bad frame.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DataFileError(f"no demonstrations file at {path}")
+    path = checked_input_file(path, "demonstrations file", MAX_RECORDING_BYTES)
     try:
         with h5py.File(path, "r") as f:
             return _read(f, path)

@@ -107,3 +107,10 @@ def test_an_output_that_is_a_dangling_link_is_refused_before_any_work(tmp_path, 
     assert main(["record", "--preset", "paper", "--out", str(tmp_path / "out.h5")]) == 2
     assert time.monotonic() - started < 5.0  # refused at the claim, not after a recording
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_a_models_manifest_linked_to_a_device_makes_the_folder_foreign_without_reading_it(tmp_path):
+    from hoap_actions.primitives.models.models_directory import foreign_entries
+
+    os.symlink("/dev/zero", tmp_path / "manifest.json")
+    assert foreign_entries(tmp_path) == ["manifest.json"]

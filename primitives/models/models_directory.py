@@ -50,9 +50,9 @@ def foreign_entries(folder: Path) -> list[str]:
     """The entries of ``folder`` that a models directory does not hold (besides ``PROVENANCE.json``,
     which the shipped models carry), or every entry when it has no manifest of action models."""
     entries = sorted(os.listdir(folder))
-    try:
-        kind = json.loads((folder / MANIFEST).read_text()).get("kind")
-    except (OSError, ValueError, AttributeError):
+    try:  # read as every model file is: a manifest linked to a device is refused, not read without end
+        kind = read_json_model(folder / MANIFEST, f"{KIND} manifest").get("kind")
+    except DataFileError:
         kind = None
     if kind != KIND:
         return entries

@@ -150,21 +150,32 @@ class _Claim:
         os.close(self._fd)
 
 
-def _held(partial: Path) -> bool:
-    """Whether a live process holds the claim ``partial`` (its lock is taken)."""
-    if fcntl is None or not partial.exists():
-        return False
+@contextlib.contextmanager
+def _probed(partial: Path) -> Iterator[bool | None]:
+    """Try the lock of the claim ``partial``: yields True while this process holds it (a killed run's
+    partial), False if a live process holds it, None if it cannot be opened (gone, no permission)."""
     try:
         fd = os.open(partial, os.O_RDONLY | (os.O_DIRECTORY if partial.is_dir() else 0))
     except OSError:
-        return False
+        yield None
+        return
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        return True
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            yield False
+        else:
+            yield True
     finally:
         os.close(fd)
-    return False
+
+
+def _held(partial: Path) -> bool:
+    """Whether a live process holds the claim ``partial``."""
+    if fcntl is None:
+        return False
+    with _probed(partial) as free:
+        return free is False
 
 
 def _refuse_if_other_claim(target: Path, partials: list[Path], what: str) -> None:
@@ -183,23 +194,14 @@ def _sweep_stale_partials(folder: Path, keep: Path) -> None:
     for stale in folder.glob(f".*{PARTIAL_MARK}*"):
         if stale == keep:
             continue
-        try:
-            fd = os.open(stale, os.O_RDONLY | (os.O_DIRECTORY if stale.is_dir() else 0))
-        except OSError:
-            continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            continue  # a live run's partial
-        try:
+        with _probed(stale) as free:
+            if not free:
+                continue  # a live run's partial, or one that is already gone
             if stale.is_dir():
                 shutil.rmtree(stale, ignore_errors=True)
             else:
                 stale.unlink(missing_ok=True)
             logger.info("removed %s, left by an interrupted run", stale)
-        finally:
-            os.close(fd)
 
 
 def _refuse_existing(path: Path, what: str) -> None:
