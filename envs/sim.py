@@ -19,6 +19,7 @@ import numpy as np
 
 from hoap_actions.envs.camera import Camera, CameraImage
 from hoap_actions.envs.display import check_display
+from hoap_actions.envs.urdf_merge import merged_urdf_path
 from hoap_actions.errors import DisplayUnavailableError, EnvClosedError, InvalidInputError
 from hoap_actions.urdf import urdf_path
 
@@ -84,7 +85,7 @@ class JointInfo:
 
 @dataclass(frozen=True)
 class FoldedLinks:
-    """What ``URDF_MERGE_FIXED_LINKS`` folds away: every joint name of the model (in PyBullet's order),
+    """What merging fixed links folds away: every joint name of the model (in PyBullet's order),
     and each folded link's name, the kept link it now rides on, and its fixed offset from that link."""
 
     joint_names: tuple[str, ...]
@@ -233,8 +234,8 @@ class Sim:
 
         ``implicit_cylinders=True`` collides URDF cylinders as exact cylinders; by default PyBullet
         uses a convex hull that its 1 mm collision margin inflates (a 15 mm peg acts 17 mm wide).
-        ``merge_fixed_links=True`` folds every link on a fixed joint into its parent (PyBullet's
-        ``URDF_MERGE_FIXED_LINKS``: fewer links to step; welded legs cost half a robot's physics step);
+        ``merge_fixed_links=True`` folds every link on a fixed joint into its parent, shapes and mass
+        (:mod:`.urdf_merge`: fewer links to step; welded legs cost half a robot's physics step);
         the folded links stay addressable by name (:meth:`link_index`, :meth:`link_poses`) and
         :meth:`joint_names` still lists every joint of the model.
         """
@@ -250,12 +251,10 @@ class Sim:
             flags |= pybullet.URDF_USE_SELF_COLLISION | pybullet.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
         if implicit_cylinders:
             flags |= pybullet.URDF_USE_IMPLICIT_CYLINDER
-        if merge_fixed_links:
-            flags |= pybullet.URDF_MERGE_FIXED_LINKS
-        with _c_output_silenced(1) if merge_fixed_links else contextlib.nullcontext():  # merging prints every link
-            body = self._p.loadURDF(
-                str(path), position, orientation, useFixedBase=fixed_base, flags=flags, globalScaling=scale
-            )
+        loaded = merged_urdf_path(str(path)) if merge_fixed_links else path
+        body = self._p.loadURDF(
+            str(loaded), position, orientation, useFixedBase=fixed_base, flags=flags, globalScaling=scale
+        )
         self._bodies[name] = body
         self._joints[name] = self._read_joints(body)
         if merge_fixed_links:

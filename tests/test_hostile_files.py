@@ -15,9 +15,10 @@ import pytest
 from hoap_actions.apps.cli import main
 from hoap_actions.demonstration.datasets import load_demonstrations
 from hoap_actions.errors import DataFileError, InvalidInputError
-from hoap_actions.models.shipped import load_default_models
+from hoap_actions.models.shipped import default_models_path, load_default_models
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
+from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.tracking.action_tracker import MAX_PARTICLES, ActionTracker
 from hoap_actions.vision.body_model import BodyModel
 
@@ -52,6 +53,21 @@ def test_the_command_line_refuses_a_device_as_models(tmp_path, capsys):
     os.symlink("/dev/zero", folder / "manifest.json")
     assert main(["recognize", "--demos", str(tmp_path / "none.h5"), "--models", str(folder)]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_a_models_folder_file_linking_outside_the_folder_is_refused(tmp_path):
+    import shutil
+
+    folder = tmp_path / "models"
+    shutil.copytree(default_models_path(), folder)
+    (folder / "grammar.json").rename(folder / "grammar_v1.json")
+    os.symlink("grammar_v1.json", folder / "grammar.json")  # a link inside the folder is part of it
+    assert ActionModels.load(folder).grammar_.symbols_ == load_default_models().grammar_.symbols_
+    (folder / "grammar_v1.json").rename(tmp_path / "grammar.json")
+    (folder / "grammar.json").unlink()
+    os.symlink(tmp_path / "grammar.json", folder / "grammar.json")
+    with pytest.raises(DataFileError, match="links outside its folder"):
+        ActionModels.load(folder)
 
 
 def test_a_tracker_refuses_more_particles_than_it_can_hold():

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.inputs import checked_folder_member
 from hoap_actions.primitives.base import file_params
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
@@ -135,7 +136,7 @@ def read_models_directory(path: Path) -> tuple[object, object, dict]:
     """The directory's ``kind``, ``format_version`` and manifest (checked further by :func:`models_from_directory`)."""
     if not path.is_dir():
         raise DataFileError(f"no models directory at {path}; make one with `hoap-actions learn`")
-    manifest = read_manifest(path / MANIFEST)
+    manifest = read_manifest(checked_folder_member(path, MANIFEST, "manifest"))
     return manifest.get("kind"), manifest.get("format_version"), manifest
 
 def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -> Any:
@@ -159,8 +160,8 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
     models.demonstrators_ = profiles_entry(manifest_path, manifest.get("demonstrators", []))
     offset = manifest.get("grasp_offset") if version >= 3 else None
     models.grasp_offset_ = None if offset is None else finite_array(manifest_path, "grasp_offset", offset, (3,))
-    models.discovery_ = PrimitiveDiscovery.load(directory / "discovery.json")
-    models.grammar_ = ActionGrammar.load(directory / "grammar.json")
+    models.discovery_ = PrimitiveDiscovery.load(checked_folder_member(directory, "discovery.json", "discovery file"))
+    models.grammar_ = ActionGrammar.load(checked_folder_member(directory, "grammar.json", "grammar file"))
     classes = {e["id"]: _entry_model(directory, e, "classes", "class", width)
                for e in _entries(manifest_path, manifest, "classes")}
     actions = {e["id"]: _entry_model(directory, e, "actions", "action", width)
@@ -212,7 +213,7 @@ def _entry_model(directory: Path, entry: dict, key: str, prefix: str, width: int
     basis = np.asarray(entry.get("effect_basis"), dtype=float)
     if basis.ndim != 2 or basis.shape[0] != EFFECT_DIM or not np.all(np.isfinite(basis)):
         raise DataFileError(f"{where}: effect_basis must be a finite (6, r) matrix; got shape {basis.shape}")
-    phmm = ParametricHMM.load(directory / entry["file"])
+    phmm = ParametricHMM.load(checked_folder_member(directory, entry["file"], "model file"))
     if phmm.mean_bar_.shape[1] != width or phmm.W_.shape[2] != basis.shape[1]:
         raise DataFileError(
             f"{directory / entry['file']}: the model has {phmm.mean_bar_.shape[1]} features and "
