@@ -207,7 +207,8 @@ class HandController:
     def tick(self) -> IKResult:
         """One period: smooth the target, correct it by the measured error, solve IK, command the joints."""
         measured = self.robot.frame_pose("r_tcp")[0]
-        self._watch_balance(measured)
+        if not self.robot.fixed_legs:  # welded soles on a fixed pelvis never tilt
+            self._watch_balance(measured)
         target = self._held if self.yielding else self.target
         try:
             step = self.retimer.step(target)

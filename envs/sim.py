@@ -6,46 +6,24 @@ one process are independent. Quaternions are ``(x, y, z, w)`` as PyBullet gives 
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import logging
 import os
-import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hoap_actions.envs.c_output import c_output_silenced
 from hoap_actions.envs.camera import Camera, CameraImage
 from hoap_actions.envs.display import check_display
 from hoap_actions.envs.urdf_merge import merged_urdf_path
 from hoap_actions.errors import DisplayUnavailableError, EnvClosedError, InvalidInputError
 from hoap_actions.urdf import urdf_path
 
-
-@contextlib.contextmanager
-def _c_output_silenced(fd: int = 2) -> Iterator[None]:
-    """Send what C code writes to file descriptor ``fd`` (2: stderr, 1: stdout) to /dev/null meanwhile
-    (Python's own errors still raise)."""
-    try:
-        (sys.stderr if fd == 2 else sys.stdout).flush()
-        saved = os.dup(fd)
-    except (OSError, ValueError, AttributeError):  # no usable stream: nothing to silence
-        yield
-        return
-    try:
-        with open(os.devnull, "w") as devnull:
-            os.dup2(devnull.fileno(), fd)
-            yield
-    finally:
-        os.dup2(saved, fd)
-        os.close(saved)
-
-
-with _c_output_silenced():  # PyBullet's C module prints its build time when imported
+with c_output_silenced():  # PyBullet's C module prints its build time when imported
     import pybullet
-from pybullet_utils.bullet_client import BulletClient  # noqa: E402  (after the silenced pybullet import)
+from pybullet_utils.bullet_client import BulletClient
 
 logger = logging.getLogger(__name__)
 
@@ -155,6 +133,7 @@ class Sim:
         self._folded: dict[str, FoldedLinks] = {}
         self._folded_hosts: dict[str, list[int]] = {}  # per body, the link index each folded link rides on
         self._recipe: list[tuple[str, tuple, dict]] = []
+        self._sent_max_velocity: dict[int, dict[int, float]] = {}  # per body and joint, the motor's speed cap
         self.cameras: dict[str, Camera] = {}
         self._configure_world()
         p = self._client
@@ -190,6 +169,7 @@ class Sim:
             self._base_offsets.clear()
             self._folded.clear()
             self._folded_hosts.clear()
+            self._sent_max_velocity.clear()
             self._configure_world()
             for method, args, kwargs in recipe:
                 getattr(self, method)(*args, **kwargs)
@@ -408,17 +388,21 @@ class Sim:
         ask for such steps (joint_delta moves targets at most 1.5 rad/s; the IK plans within 5 rad/s).
         """
         body = self.body_id(name)
+        # PyBullet's bulk call takes no maxVelocity but keeps the one last set, so the per-joint call
+        # is only made for joints whose speed limit changed
+        sent = self._sent_max_velocity.setdefault(body, {})
         for j, q, f, v in zip(indices, positions, forces, max_velocities):
-            self._p.setJointMotorControl2(
-                body,
-                j,
-                pybullet.POSITION_CONTROL,
-                targetPosition=float(q),
-                force=float(f),
-                maxVelocity=float(v),
-                positionGain=position_gain,
-                velocityGain=velocity_gain,
-            )
+            if sent.get(j) != v:
+                self._p.setJointMotorControl2(
+                    body, j, pybullet.POSITION_CONTROL, targetPosition=float(q), force=float(f),
+                    maxVelocity=float(v), positionGain=position_gain, velocityGain=velocity_gain,
+                )
+                sent[j] = v
+        n = len(indices)
+        self._p.setJointMotorControlArray(
+            body, list(indices), pybullet.POSITION_CONTROL, targetPositions=[float(q) for q in positions],
+            forces=[float(f) for f in forces], positionGains=[position_gain] * n, velocityGains=[velocity_gain] * n,
+        )
 
     def set_joint_velocity_limits(self, name: str, indices: list[int], limits: np.ndarray) -> None:
         """Clamp the speed of joints ``indices`` of body ``name`` to ``limits`` (rad/s, > 0) in the solver.
@@ -569,6 +553,7 @@ class Sim:
         the same empty cache every time.
         """
         self._p.restoreState(stateId=state_id)
+        self._sent_max_velocity.clear()
         for k, body in enumerate(self._bodies.values()):
             self._p.resetBasePositionAndOrientation(body, [100.0 + 10.0 * k, 100.0, 100.0], [0.0, 0.0, 0.0, 1.0])
         self._p.performCollisionDetection()
