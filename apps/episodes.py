@@ -47,6 +47,7 @@ class EpisodeResult:
     wall_s: float
     perception_error_m: float | None = None
     path_deviation_m: dict[str, float] | None = None
+    hand_error_m: float | None = None  # ee_delta: 95th percentile over steps of the hand's distance from its reference
 
 
 def run_episode(
@@ -59,6 +60,8 @@ def run_episode(
     policy.reset(obs, info)
     perception_error = _perception_error(policy.located(), truth) if truth is not None else None
     steps, reason = 0, "timeout"
+    hand_error = _hand_error_reader(env)
+    hand_errors: list[float] = []
     while True:
         if frames is not None:
             frames.append(env.render())
@@ -70,6 +73,8 @@ def run_episode(
             break
         obs, _, terminated, truncated, info = env.step(policy(obs))
         steps += 1
+        if hand_error is not None:
+            hand_errors.append(hand_error(obs))
         if info["is_success"]:
             reason = "success"
             break
@@ -82,7 +87,17 @@ def run_episode(
         frames.append(env.render())
     deviations = policy.path_deviations() if hasattr(policy, "path_deviations") else None
     return EpisodeResult(seed, reason == "success", reason, steps, time.perf_counter() - start,
-                         perception_error, deviations)
+                         perception_error, deviations,
+                         float(np.percentile(hand_errors, 95)) if hand_errors else None)
+
+
+def _hand_error_reader(env: gymnasium.Env) -> Callable[[dict[str, np.ndarray]], float] | None:
+    """For an ee_delta env, ``obs -> `` the distance (m) of the measured hand from the controller's
+    reference, how closely the hand-space controller tracks; None for other control modes."""
+    if env.get_wrapper_attr("control_mode") != "ee_delta":
+        return None
+    parse, status = env.get_wrapper_attr("parse_observation"), lambda: env.get_wrapper_attr("hand_status")
+    return lambda obs: float(np.linalg.norm(parse(obs)["tcp_position"] - status().reference))
 
 
 def _perception_error(located: dict[str, np.ndarray] | None, truth: dict[str, Any]) -> float | None:
@@ -129,14 +144,15 @@ def film_episode(
 _WORKER: dict[str, Any] = {}
 
 
-def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]], robot: str) -> None:
+def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]], robot: str, env_kwargs: dict | None = None
+                  ) -> None:
     from hoap_actions.policies.registry import policy_class
 
     classes = {name: policy_class(cls, env_id) for name, (cls, _) in policies.items()}
     modes = {c.control_mode for c in classes.values()}
     if len(modes) != 1:
         raise InvalidInputError(f"the compared policies act through different control modes {sorted(modes)}")
-    env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop(), robot=robot)
+    env = gymnasium.make(env_id, render_mode="rgb_array", control_mode=modes.pop(), robot=robot, **(env_kwargs or {}))
     atexit.register(env.close)  # a worker process closes its simulator before the interpreter goes
     _WORKER.update(env=env, policies={name: classes[name](env, **kwargs) for name, (_, kwargs) in policies.items()})
 
@@ -147,14 +163,15 @@ def _run_seed(seed: int) -> dict[str, EpisodeResult]:
 
 def compare_policies(
     env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1, robot: str = "full",
-    ray_address: str | None = None,
+    ray_address: str | None = None, env_kwargs: dict[str, Any] | None = None,
 ) -> dict[str, list[EpisodeResult]]:
     """Every policy on every seed's layout, interleaved (seed by seed, policy after policy, in one
     env per worker), so machine load falls alike on all. ``policies`` maps a label to a policy name
     (:data:`~hoap_actions.policies.registry.POLICIES`) and its keyword arguments. Episodes
     depend on their seed alone, so ``workers`` processes, or Ray actors with ``ray_address`` (see
     :func:`hoap_actions.parallel.ordered_map`), give the serial results. ``robot`` is the env's robot
-    model (``"full"`` or ``"fixed_legs"``)."""
+    model (``"full"`` or ``"fixed_legs"``); ``env_kwargs`` go to ``gymnasium.make`` besides it (e.g.
+    ``{"ik_period": 4}``)."""
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise InvalidInputError("seeds is empty; give at least one")
@@ -162,7 +179,7 @@ def compare_policies(
         check_seed(s)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInputError(f"workers must be a positive integer; got {workers!r}")
-    initargs = (env_id, policies, robot)
+    initargs = (env_id, policies, robot, env_kwargs)
     if workers == 1 and ray_address is None:
         _start_worker(*initargs)
         try:
@@ -198,6 +215,9 @@ def summarise(results: list[EpisodeResult], timings: bool = True) -> dict[str, A
         summary["path_deviation_m"] = {k: _median_max([r.path_deviation_m[k] for r in results
                                                          if r.path_deviation_m and k in r.path_deviation_m])
                                        for k in names}
+    hand = [r.hand_error_m for r in results if r.hand_error_m is not None]
+    if hand:
+        summary["hand_error_m"] = _median_max(hand)
     summary["episodes"] = [asdict(r) for r in results]
     if not timings:
         del summary["mean_wall_s"]

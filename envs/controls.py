@@ -9,6 +9,7 @@ from hoap_actions.controllers.hand_control import HandController, start_posture
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import TIMESTEP
+from hoap_actions.errors import InvalidInputError
 
 MAX_JOINT_DELTA = 0.05  # rad per action (30 Hz): 1.5 rad/s at full command, under the 5 rad/s servo limit
 JOINT_DELTA_JOINTS = (
@@ -60,6 +61,8 @@ class JointDeltaController:
         self.robot.set_targets(self._target)
 
 
+IK_PERIOD = {"full": 1, "fixed_legs": 1}
+"""Physics ticks per retimer and IK step of ee_delta, per robot model (the env's ``ik_period``)."""
 MAX_HAND_STEP = 0.005  # m per action and axis (30 Hz): 0.15 m/s, the hand reference's speed limit
 HAND_BOX_LOW = np.array([world.WORK_AREA_LOW[0] - 0.04, world.WORK_AREA_LOW[1] - 0.05, 0.015])
 HAND_BOX_HIGH = np.array([world.WORK_AREA_HIGH[0] + 0.04, world.WORK_AREA_HIGH[1] + 0.05, 0.16])
@@ -86,9 +89,11 @@ class EEDeltaController:
     poses the robot there on the freshly restored world, before the env places the layout.
     """
 
-    def __init__(self, robot: Robot) -> None:
+    def __init__(self, robot: Robot, ik_period: int | None = None) -> None:
         self.robot = robot
-        self.hand = HandController(robot, TIMESTEP)
+        if ik_period is None:
+            ik_period = IK_PERIOD["fixed_legs" if robot.fixed_legs else "full"]
+        self.hand = HandController(robot, TIMESTEP, ik_period=ik_period)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.last_clipped = False
         self.desired = np.zeros(3)
@@ -118,6 +123,13 @@ class EEDeltaController:
 CONTROL_MODES = {"joint_delta": JointDeltaController, "ee_delta": EEDeltaController}
 
 
-def make_controller(control_mode: str, robot: Robot) -> JointDeltaController | EEDeltaController:
-    """The controller for ``control_mode`` (one of :data:`CONTROL_MODES`)."""
-    return CONTROL_MODES[control_mode](robot)
+def make_controller(control_mode: str, robot: Robot, ik_period: int | None = None
+                    ) -> JointDeltaController | EEDeltaController:
+    """The controller for ``control_mode`` (one of :data:`CONTROL_MODES`); ``ik_period`` (ticks per IK
+    step) is ee_delta's alone."""
+    if control_mode != "ee_delta":
+        if ik_period is not None:
+            raise InvalidInputError(f"ik_period={ik_period!r} applies to control_mode='ee_delta' only; "
+                                    f"leave it None for {control_mode!r}")
+        return CONTROL_MODES[control_mode](robot)
+    return EEDeltaController(robot, ik_period)

@@ -113,6 +113,7 @@ class HoapEnv(gymnasium.Env):
         render_height: int = 240,
         reward_type: str = "sparse",
         robot: str = "full",
+        ik_period: int | None = None,
         **task_kwargs: Any,
     ) -> None:
         self._check_keywords(task_kwargs)
@@ -143,7 +144,7 @@ class HoapEnv(gymnasium.Env):
             self.camera = camera
             self._render_camera = replace(self.sim.cameras[camera], width=render_width, height=render_height)
             self.task = self.task_cls(self.sim, self.robot, self.scene, **task_kwargs)
-            self.controller = make_controller(control_mode, self.robot)
+            self.controller = make_controller(control_mode, self.robot, ik_period)
             self.robot.reset()
             self.task.reset(np.random.default_rng(0))  # a first layout, only to size the observation
             obs = self._observation()

@@ -390,18 +390,23 @@ class Sim:
         body = self.body_id(name)
         # PyBullet's bulk call takes no maxVelocity but keeps the one last set, so the per-joint call
         # is only made for joints whose speed limit changed
+        indices = [int(j) for j in indices]
+        positions = np.asarray(positions, dtype=float).tolist()
+        forces = np.asarray(forces, dtype=float).tolist()
+        max_velocities = np.asarray(max_velocities, dtype=float).tolist()
         sent = self._sent_max_velocity.setdefault(body, {})
-        for j, q, f, v in zip(indices, positions, forces, max_velocities):
-            if sent.get(j) != v:
-                self._p.setJointMotorControl2(
-                    body, j, pybullet.POSITION_CONTROL, targetPosition=float(q), force=float(f),
-                    maxVelocity=float(v), positionGain=position_gain, velocityGain=velocity_gain,
-                )
-                sent[j] = v
+        if [sent.get(j) for j in indices] != max_velocities:
+            for j, q, f, v in zip(indices, positions, forces, max_velocities):
+                if sent.get(j) != v:
+                    self._p.setJointMotorControl2(
+                        body, j, pybullet.POSITION_CONTROL, targetPosition=q, force=f, maxVelocity=v,
+                        positionGain=position_gain, velocityGain=velocity_gain,
+                    )
+                    sent[j] = v
         n = len(indices)
         self._p.setJointMotorControlArray(
-            body, list(indices), pybullet.POSITION_CONTROL, targetPositions=[float(q) for q in positions],
-            forces=[float(f) for f in forces], positionGains=[position_gain] * n, velocityGains=[velocity_gain] * n,
+            body, indices, pybullet.POSITION_CONTROL, targetPositions=positions, forces=forces,
+            positionGains=[position_gain] * n, velocityGains=[velocity_gain] * n,
         )
 
     def set_joint_velocity_limits(self, name: str, indices: list[int], limits: np.ndarray) -> None:

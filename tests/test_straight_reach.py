@@ -42,3 +42,18 @@ def test_it_reaches_most_targets_and_never_falls():
 def test_it_is_refused_where_it_cannot_act():
     with pytest.raises(InvalidInputError, match="does not act in hoap_actions/PegInsert-v0"):
         policy_class("straight", "hoap_actions/PegInsert-v0")
+
+
+def test_an_episode_reports_how_closely_the_hand_tracked_its_reference():
+    """ee_delta episodes carry the hand's tracking error (95th percentile over steps); the straight
+    reach moves the reference at the controller's full speed, and the servos follow within a centimetre."""
+    from hoap_actions.apps.episodes import run_episode, summarise
+
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta", robot="fixed_legs")
+    result = run_episode(env, StraightReach(env), seed=0)
+    env.close()
+    assert 0.0 < result.hand_error_m < 0.01
+    assert summarise([result])["hand_error_m"] == {"median": result.hand_error_m, "max": result.hand_error_m}
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="joint_delta", robot="fixed_legs")
+    assert run_episode(env, policy_class("random")(env), seed=0).hand_error_m is None
+    env.close()

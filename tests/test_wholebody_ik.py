@@ -239,3 +239,39 @@ def test_ee_delta_random_actions_keep_the_robot_up():
         if terminated:
             break
     env.close()
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, True, "4"])
+def test_the_ik_period_must_be_a_whole_number_of_ticks(standing, bad):
+    _, robot, _, _ = standing
+    with pytest.raises(InvalidInputError, match="ik_period"):
+        HandController(robot, TIMESTEP, ik_period=bad)
+
+
+def test_between_ik_steps_the_joint_targets_move_on_the_line_between_their_answers(standing):
+    sim, robot, _, state = standing
+    period = 4
+    hand = HandController(robot, TIMESTEP, ik_period=period)
+    sim.restore_state(state)
+    hand.reset()
+    hand.set_target(hand.reference + [0.03, -0.02, 0.02])
+    sent, answers = [], []
+    for _ in range(6 * period):
+        before = hand.last
+        hand.tick()
+        if hand.last is not before:
+            answers.append(hand.last.q.copy())
+        sent.append(robot.targets.copy())
+        sim.step(1)
+    assert len(answers) == 6  # one IK step per period
+    moving = [n for n in range(len(robot.joint_names)) if n != robot.joint_index("r_gripper")]
+    for step in range(1, 6):
+        start, end = answers[step - 1][moving], answers[step][moving]
+        for k in range(1, period + 1):
+            np.testing.assert_allclose(sent[step * period + k - 1][moving], start + k / period * (end - start),
+                                       atol=1e-12)
+
+
+def test_ik_period_belongs_to_ee_delta():
+    with pytest.raises(InvalidInputError, match="ee_delta"):
+        gymnasium.make("hoap_actions/Reach-v1", control_mode="joint_delta", ik_period=4)
