@@ -3,6 +3,7 @@ convention), world points to pixels, and the image sizes the renderer accepts.""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,13 +15,39 @@ __all__ = ["MAX_IMAGE_SIDE", "Camera", "CameraImage", "check_image_size"]
 MAX_IMAGE_SIDE = 4096  # px, largest camera width or height: TinyRenderer allocates the whole frame up front
 
 
+BYTES_PER_PIXEL = 64
+"""Memory one rendered pixel takes at its peak: TinyRenderer's colour, depth and segmentation
+buffers, PyBullet's Python lists of them and the arrays made from those (measured: 62 bytes at
+2048 x 1536)."""
+
+
 def check_image_size(width: object, height: object, what: str = "camera") -> None:
     """Image sides must be whole pixels in 1..:data:`MAX_IMAGE_SIDE` (PyBullet aborts the process on
-    negative sizes and runs out of memory on huge ones)."""
+    negative sizes), and a frame must fit in the memory this machine has free (a render the machine
+    cannot hold would end in the kernel's out-of-memory kill, not an error)."""
     for name, value in (("width", width), ("height", height)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_IMAGE_SIDE:
             raise InvalidInputError(f"{what} {name} must be an integer number of pixels in 1..{MAX_IMAGE_SIDE}; got "
                                     f"{value!r}")
+    needed, free = int(width) * int(height) * BYTES_PER_PIXEL, _free_memory()
+    if free is not None and needed > free:
+        raise InvalidInputError(f"a {width} x {height} {what} image needs about {needed / 2**20:.0f} MiB to render; "
+                                f"this machine has {free / 2**20:.0f} MiB free: choose a smaller size")
+
+
+def _free_memory() -> int | None:
+    """Bytes of memory available now (free and reclaimable), or None where the system does not say."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
 
 
 @dataclass(frozen=True)

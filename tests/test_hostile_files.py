@@ -70,6 +70,17 @@ def test_a_models_folder_file_linking_outside_the_folder_is_refused(tmp_path):
         ActionModels.load(folder)
 
 
+def test_a_render_larger_than_the_free_memory_is_refused_before_pybullet_allocates(monkeypatch):
+    import gymnasium
+
+    from hoap_actions.envs import camera
+
+    monkeypatch.setattr(camera, "_free_memory", lambda: 100 * 2**20)
+    with pytest.raises(InvalidInputError, match="MiB free"):
+        gymnasium.make("hoap_actions/PegInsert-v0", render_mode="rgb_array", render_width=2048, render_height=1536)
+    camera.check_image_size(640, 480)  # 19 MiB: fits
+
+
 def test_a_tracker_refuses_more_particles_than_it_can_hold():
     models = load_default_models()
     body = BodyModel(models.marker_names_, torso_base=np.zeros(3))
