@@ -3,7 +3,7 @@
 Every reset rebuilds the physics world; anything kept per reset (by PyBullet, placo or this package)
 shows here. One env per robot and control mode, in this process, one after the other.
 
-    python benchmarks/reset_memory.py [--warmup 200] [--resets 2000]
+    python benchmarks/reset_memory.py [--warmup 200] [--resets 10000]
 
 Prints the growth and writes ``results/reset_memory.json``; the goal is under 5 MB per 10,000 resets.
 """
@@ -31,7 +31,7 @@ def resident_kib() -> int:
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("reset_memory.json")])
     parser.add_argument("--warmup", type=int, default=200)
-    parser.add_argument("--resets", type=int, default=2000)
+    parser.add_argument("--resets", type=int, default=10_000)
     args = parser.parse_args(argv)
     import gymnasium
 
