@@ -29,11 +29,12 @@ What "the centre" means (and what the simulator's truth is compared with):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from functools import lru_cache
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from hoap_actions.envs import scene, world
 from hoap_actions.envs.camera import Camera
@@ -50,6 +51,10 @@ MIN_BOARD_FRACTION = 0.2  # of the board's top area that must be seen for holes 
 MIN_BOARD_PIECE_AREA = 20e-6  # m^2, smaller patches at the board's height are peg sides or the robot's edges
 BOARD_SEARCH_PX = 4  # pixels around the seen top surface whose non-top points must lie off the board
 BOARD_FIT_SCALE = 0.001  # m, residual beyond which the board fit counts a point as an outlier (soft L1)
+# Mean soft-L1 cost per seen point (m^2) below which a board fit explains them and the other orientation is
+# not tried: as if one point in a hundred lay BOARD_FIT_SCALE off. Rendered boards' fits stay under 3 % of it
+# (seeds 0-49, 12000-12049, arm in view or not); a board fitted across leaves hundreds of points that far off.
+BOARD_EXPLAINED_COST = 0.01 * (math.sqrt(2.0) - 1.0) * BOARD_FIT_SCALE**2
 MIN_SEEN_OPENING_FRACTION = 0.5  # a hole whose opening is less seen than this is flagged as inferred
 # Where in the continuous image of Camera.project TinyRenderer samples pixel (row r, column c):
 # at (c + 0, r + 1), not at the pixel's centre (c + 0.5, r + 0.5); measured on seeds 0-49, where
@@ -62,6 +67,7 @@ FACE_TOLERANCE = 0.0005  # m, a top-face point's distance from the face's fitted
 MIN_LEAN = math.radians(3.0)  # rad, a top face tilted less is taken as level (12 px faces give ~1 deg of noise)
 TOP_FACE_REFITS = 2  # plane fits of a peg's top face: the second picks up a leaning face's lower side
 TABLE_XY_MARGIN = 0.01  # m, points this far beyond the table's edges are not on the table
+BLOB_MARGIN_PX = 2  # pixels around a colour blob's bounding box that its peg's fit reads
 
 
 @dataclass(frozen=True)
@@ -130,9 +136,35 @@ def rays_to_plane(camera: Camera, u: np.ndarray, v: np.ndarray, height: float) -
 
 
 def _pixel_points(camera: Camera, depth: np.ndarray) -> np.ndarray:
-    """World points (H, W, 3) of every pixel's centre."""
+    """World points (H, W, 3) of every pixel's sample point: linear in depth along each pixel's ray
+    (one coordinate plane at a time: numpy broadcasts over a last axis of 3 slowly)."""
+    rays, origin = _pixel_rays(_camera_key(camera))
+    points = np.empty((*depth.shape, 3))
+    for axis in range(3):
+        np.multiply(depth, rays[axis], out=points[..., axis])
+        points[..., axis] += origin[axis]
+    return points
+
+
+def _camera_key(camera: Camera) -> tuple:
+    """The camera's fields in order, made hashable (eye, target and up may be lists): what its rays and
+    checks are cached under."""
+    return tuple(tuple(map(float, value)) if isinstance(value, (list, tuple, np.ndarray)) else value
+                 for value in (getattr(camera, f.name) for f in fields(camera)))
+
+
+@lru_cache(maxsize=4)  # each entry is one image's points in size; the robot has one overhead camera
+def _pixel_rays(key: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """Per world axis and pixel the offset per metre of depth (3, H, W), and the constant term (3,),
+    of :func:`backproject`: fixed for a fixed camera, so kept (read-only) rather than redone per image."""
+    camera = Camera(*key)
     v, u = np.mgrid[0 : camera.height, 0 : camera.width]
-    return backproject(camera, u + PIXEL_SAMPLE_UV[0], v + PIXEL_SAMPLE_UV[1], depth)
+    origin = backproject(camera, 0.0, 0.0, 0.0)
+    rays = np.moveaxis(backproject(camera, u + PIXEL_SAMPLE_UV[0], v + PIXEL_SAMPLE_UV[1], 1.0) - origin, -1, 0)
+    rays = np.ascontiguousarray(rays)
+    rays.setflags(write=False)
+    origin.setflags(write=False)
+    return rays, origin
 
 
 # -------------------------------------------------------------------------------------- validation
@@ -148,18 +180,25 @@ def _check_inputs(rgb: object, depth: object, camera: object) -> tuple[np.ndarra
         raise InvalidInputError(f"depth must be a float array of shape {shape} in metres; got {got}")
     if not np.all(np.isfinite(depth)) or depth.min() <= 0.0:
         raise InvalidInputError("depth must be finite and positive (metres along the view axis)")
-    corners = np.array([[x, y, 0.0] for x in (world.WORK_AREA_LOW[0], world.WORK_AREA_HIGH[0])
-                        for y in (world.WORK_AREA_LOW[1], world.WORK_AREA_HIGH[1])])
-    in_front = (np.c_[corners, np.ones(4)] @ camera.view_matrix().T)[:, 2] < -camera.near
-    pixels = camera.project(corners)
-    inside = (pixels >= 0).all(axis=1) & (pixels[:, 0] <= camera.width) & (pixels[:, 1] <= camera.height)
-    if not np.all(in_front & inside):
+    if not _sees_work_area(_camera_key(camera)):
         raise InvalidInputError(
             "the camera does not see the whole work area of the table (its corners at "
             f"{world.WORK_AREA_LOW} .. {world.WORK_AREA_HIGH} m); accepted: a camera looking down on it, "
             "such as the scene's 'overhead' camera"
         )
     return rgb, np.asarray(depth, dtype=float)
+
+
+@lru_cache(maxsize=4)
+def _sees_work_area(key: tuple) -> bool:
+    """Whether the camera of ``key`` (:func:`_camera_key`) sees the table's whole work area in front of it."""
+    camera = Camera(*key)
+    corners = np.array([[x, y, 0.0] for x in (world.WORK_AREA_LOW[0], world.WORK_AREA_HIGH[0])
+                        for y in (world.WORK_AREA_LOW[1], world.WORK_AREA_HIGH[1])])
+    in_front = (np.c_[corners, np.ones(4)] @ camera.view_matrix().T)[:, 2] < -camera.near
+    pixels = camera.project(corners)
+    inside = (pixels >= 0).all(axis=1) & (pixels[:, 0] <= camera.width) & (pixels[:, 1] <= camera.height)
+    return bool(np.all(in_front & inside))
 
 
 def _on_table(points: np.ndarray) -> np.ndarray:
@@ -169,6 +208,21 @@ def _on_table(points: np.ndarray) -> np.ndarray:
     return (x >= x_low) & (x <= x_high) & (np.abs(y) <= world.TABLE_SIZE[1] / 2 + TABLE_XY_MARGIN)
 
 
+def _components(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Labels (H, W) and per-label stats (as ``cv2.connectedComponentsWithStats``, 8-connected) of
+    ``mask``'s components, found within its bounding box: OpenCV's statistics pass costs the whole
+    image's size, the box is small. Row 0 of the stats, the background, covers only the box."""
+    left, top, width, height = cv2.boundingRect(mask.astype(np.uint8))
+    labels = np.zeros(mask.shape, np.int32)
+    if width == 0:  # OpenCV rejects an empty image
+        return labels, np.array([[0, 0, mask.shape[1], mask.shape[0], mask.size]], np.int32)
+    box = (slice(top, top + height), slice(left, left + width))
+    _, labels[box], stats, _ = cv2.connectedComponentsWithStats(mask[box].astype(np.uint8), connectivity=8)
+    stats[1:, cv2.CC_STAT_LEFT] += left
+    stats[1:, cv2.CC_STAT_TOP] += top
+    return labels, stats
+
+
 # -------------------------------------------------------------------------------------------- pegs
 def _hue_distance_deg(hue: np.ndarray, reference_rgb: np.ndarray) -> np.ndarray:
     ref = cv2.cvtColor(np.uint8(np.round(reference_rgb * 255))[None, None], cv2.COLOR_RGB2HSV_FULL)[0, 0, 0]
@@ -176,34 +230,58 @@ def _hue_distance_deg(hue: np.ndarray, reference_rgb: np.ndarray) -> np.ndarray:
     return np.minimum(delta, 360.0 - delta)
 
 
+def _hue_labels() -> np.ndarray:
+    """Per 8-bit hue the index of the peg colour it belongs to (nearest, within
+    :data:`MAX_HUE_DISTANCE_DEG`), else 255: a lookup table, as hue takes only 256 values."""
+    hues = np.arange(256, dtype=np.uint8)
+    distances = np.stack([_hue_distance_deg(hues, rgb) for rgb in PEG_COLOURS_RGB.values()])
+    nearest = np.argmin(distances, axis=0)
+    close = distances[nearest, np.arange(256)] <= MAX_HUE_DISTANCE_DEG
+    return np.where(close, nearest, 255).astype(np.uint8)
+
+
+_HUE_LABELS = _hue_labels()
+
+
 def _colour_masks(rgb: np.ndarray, colours: tuple[str, ...]) -> dict[str, np.ndarray]:
     hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV_FULL)
     saturated = (hsv[..., 1] >= MIN_PEG_SATURATION * 255) & (hsv[..., 2] >= 40)
-    distances = {name: _hue_distance_deg(hsv[..., 0], PEG_COLOURS_RGB[name]) for name in PEG_COLOURS_RGB}
-    nearest = np.argmin(np.stack(list(distances.values())), axis=0)
+    labels = cv2.LUT(hsv[..., 0], _HUE_LABELS)
     names = list(PEG_COLOURS_RGB)
-    return {
-        name: saturated & (nearest == names.index(name)) & (distances[name] <= MAX_HUE_DISTANCE_DEG) for name in colours
-    }
+    return {name: saturated & (labels == names.index(name)) for name in colours}
 
 
-def _locate_peg(colour: str, mask: np.ndarray, points: np.ndarray) -> PegDetection | None:
-    """The peg in ``mask``'s largest plausible blob, or None."""
-    radius, length = scene.PEG_RADIUS, scene.PEG_LENGTH
+def _peg_height_points(points: np.ndarray, on_table: np.ndarray) -> np.ndarray:
+    """Pixels whose points lie on the table no higher than a standing peg's top."""
     z = points[..., 2]
-    plausible = mask & _on_table(points) & (z <= length + PEG_HEIGHT_MARGIN) & (z >= -PEG_HEIGHT_MARGIN)
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(plausible.astype(np.uint8), connectivity=8)
+    return on_table & (z <= scene.PEG_LENGTH + PEG_HEIGHT_MARGIN) & (z >= -PEG_HEIGHT_MARGIN)
+
+
+def _locate_peg(colour: str, plausible: np.ndarray, points: np.ndarray) -> PegDetection | None:
+    """The peg in the largest blob of ``plausible`` (its colour's pixels at a peg's height) that looks
+    like one, or None."""
+    radius, length = scene.PEG_RADIUS, scene.PEG_LENGTH
+    labels, stats = _components(plausible)
     best: PegDetection | None = None
     for label in np.argsort(-stats[1:, cv2.CC_STAT_AREA]) + 1:
-        blob = labels == label
-        top_z = float(np.max(z[blob]))
+        window = _blob_window(stats[label], plausible.shape)
+        blob, blob_points = labels[window] == label, points[window]
+        top_z = float(np.max(blob_points[..., 2][blob]))
         if not 2 * radius - PEG_HEIGHT_MARGIN <= top_z <= length + PEG_HEIGHT_MARGIN:
             continue
         standing = top_z > (2 * radius + length) / 2
-        best = (_standing_peg if standing else _lying_peg)(colour, blob, points, top_z)
+        best = (_standing_peg if standing else _lying_peg)(colour, blob, blob_points, top_z)
         if best is not None:
             break
     return best
+
+
+def _blob_window(stat: np.ndarray, shape: tuple[int, int]) -> tuple[slice, slice]:
+    """The image window of a blob's bounding box and ``BLOB_MARGIN_PX`` around it: what a peg's fit
+    reads (its face's ring and rim lie within a pixel of it), so the fit need not touch the whole image."""
+    left, top, width, height = (int(x) for x in stat[:4])
+    return (slice(max(top - BLOB_MARGIN_PX, 0), min(top + height + BLOB_MARGIN_PX, shape[0])),
+            slice(max(left - BLOB_MARGIN_PX, 0), min(left + width + BLOB_MARGIN_PX, shape[1])))
 
 
 def _standing_peg(colour: str, blob: np.ndarray, points: np.ndarray, top_z: float) -> PegDetection | None:
@@ -245,12 +323,13 @@ def _lying_peg(colour: str, blob: np.ndarray, points: np.ndarray, top_z: float) 
 
 
 def _pixel_area(points: np.ndarray, where: np.ndarray) -> float:
-    """Mean world area (m^2) a pixel covers around ``where`` (from neighbouring pixels' points)."""
-    dx = np.linalg.norm(points[:, 1:] - points[:, :-1], axis=-1)
-    dy = np.linalg.norm(points[1:] - points[:-1], axis=-1)
+    """Mean world area (m^2) a pixel covers around ``where`` (from its neighbours' points to the right and below)."""
     v, u = np.nonzero(where)
-    v, u = np.minimum(v, dy.shape[0] - 1), np.minimum(u, dx.shape[1] - 1)
-    return float(np.median(dx[v, u]) * np.median(dy[v, u]))
+    v, u = np.minimum(v, points.shape[0] - 2), np.minimum(u, points.shape[1] - 2)
+    here = points[v, u]
+    dx = np.linalg.norm(points[v, u + 1] - here, axis=-1)
+    dy = np.linalg.norm(points[v + 1, u] - here, axis=-1)
+    return float(np.median(dx) * np.median(dy))
 
 
 def _fit_circle(xy: np.ndarray, radius: float, start: np.ndarray) -> np.ndarray:
@@ -279,16 +358,18 @@ def _opening_area() -> float:
     return _opening_side() ** 2
 
 
-def _locate_holes(camera: Camera, points: np.ndarray) -> tuple[tuple[HoleDetection, ...], bool, list[str]]:
+def _locate_holes(
+    camera: Camera, points: np.ndarray, on_table: np.ndarray
+) -> tuple[tuple[HoleDetection, ...], bool, list[str]]:
     """The holes from the board's pose, fitted to its seen top surface and to what is seen around it."""
     board_top = scene.BOARD_SIZE[2]
     z = points[..., 2]
-    top = (np.abs(z - board_top) <= HEIGHT_TOLERANCE) & _on_table(points)
+    top = (np.abs(z - board_top) <= HEIGHT_TOLERANCE) & on_table
     if not top.any():
         return (), False, ["no board top surface in view"]
     pixel_area = _pixel_area(points, top)
     board_area = scene.BOARD_SIZE[0] * scene.BOARD_SIZE[1] - scene.N_HOLES * _opening_area()
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(top.astype(np.uint8), connectivity=8)
+    labels, stats = _components(top)
     pieces = np.isin(labels, 1 + np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] * pixel_area >= MIN_BOARD_PIECE_AREA))
     if pieces.sum() * pixel_area < MIN_BOARD_FRACTION * board_area:
         return (), False, ["no board top surface in view"]
@@ -302,8 +383,8 @@ def _locate_holes(camera: Camera, points: np.ndarray) -> tuple[tuple[HoleDetecti
     holes_xy = centre + scene.HOLE_LOCAL_XY @ _rotation(yaw).T
     holes = []
     notes: list[str] = []
-    for xy in holes_xy:
-        seen = 1.0 - _covered_fraction(camera, covered, xy, surface_z)
+    for xy, covered_fraction in zip(holes_xy, _covered_fractions(camera, covered, holes_xy, surface_z)):
+        seen = 1.0 - covered_fraction
         inferred = seen < MIN_SEEN_OPENING_FRACTION
         holes.append(HoleDetection(np.array([*xy, surface_z]), float(seen), inferred=inferred))
         if inferred:
@@ -312,45 +393,108 @@ def _locate_holes(camera: Camera, points: np.ndarray) -> tuple[tuple[HoleDetecti
     return tuple(holes), True, notes
 
 
-def _board_residuals(pose: np.ndarray, inside_xy: np.ndarray, outside_xy: np.ndarray) -> np.ndarray:
-    """How far (m) seen top-surface points lie outside the board's top (rectangle less openings), and
-    seen points that are not top surface lie inside it, for a board at ``pose`` = (x, y, yaw)."""
-    half_board = np.array(scene.BOARD_SIZE[:2]) / 2
+class _BoardModel:
+    """The board fit's residuals for one set of seen points: how far (m) seen top-surface points
+    (``inside_xy``) lie off the board's top (beyond its rectangle or in an opening) and seen points
+    that are not top surface (``outside_xy``) lie within it, for a board at ``pose`` = (x, y, yaw).
+    The exact Jacobian comes with them, for the fit needs no finite differences (three more residual
+    evaluations per step), and both are computed once per pose (the fit asks for them one after the other)."""
+
+    def __init__(self, inside_xy: np.ndarray, outside_xy: np.ndarray) -> None:
+        self.inside_xy, self.outside_xy = inside_xy, outside_xy
+        self._pose: np.ndarray | None = None
+        self._residuals = self._jacobian = np.empty(0)
+
+    def residuals(self, pose: np.ndarray) -> np.ndarray:
+        """Residuals (N,) (m): the inside points' first, as ``least_squares``' ``fun``."""
+        self._evaluate(pose)
+        return self._residuals
+
+    def jacobian(self, pose: np.ndarray) -> np.ndarray:
+        """Their derivatives (N, 3) w.r.t. (x, y, yaw), as ``least_squares``' ``jac``."""
+        self._evaluate(pose)
+        return self._jacobian
+
+    def _evaluate(self, pose: np.ndarray) -> None:
+        if self._pose is not None and np.array_equal(pose, self._pose):
+            return
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        errors, rows = [], []
+        for xy, error in ((self.inside_xy, _inside_error), (self.outside_xy, _outside_error)):
+            dx, dy = xy[:, 0] - pose[0], xy[:, 1] - pose[1]
+            px, py = dx * c + dy * s, dy * c - dx * s  # the points in the board's frame
+            value, grad_x, grad_y = error(px, py)
+            errors.append(value)
+            rows.append(np.column_stack([s * grad_y - c * grad_x, -s * grad_x - c * grad_y, py * grad_x - px * grad_y]))
+        self._pose = np.array(pose, dtype=float)
+        self._residuals, self._jacobian = np.concatenate(errors), np.concatenate(rows)
+
+
+def _inside_error(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How far (m) top-surface points at board coordinates ``px``, ``py`` lie off the top (beyond the
+    rectangle, or into the opening they are in up to its nearer side), and its gradient along ``px``, ``py``."""
+    over_x = np.maximum(np.abs(px) - scene.BOARD_SIZE[0] / 2, 0.0)
+    over_y = np.maximum(np.abs(py) - scene.BOARD_SIZE[1] / 2, 0.0)
+    error = np.hypot(over_x, over_y)
+    grad_x, grad_y = np.zeros_like(px), np.zeros_like(py)
+    off = np.flatnonzero(error > 0.0)
+    grad_x[off] = np.copysign(over_x[off] / error[off], px[off])
+    grad_y[off] = np.copysign(over_y[off] / error[off], py[off])
     half_opening = _opening_side() / 2
+    for hole_x, hole_y in scene.HOLE_LOCAL_XY:  # the openings lie within the top: at most one holds a point
+        rel_x, rel_y = px - hole_x, py - hole_y
+        in_x, in_y = half_opening - np.abs(rel_x), half_opening - np.abs(rel_y)
+        hit = np.flatnonzero((in_x > 0.0) & (in_y > 0.0))
+        along_x = in_x[hit] <= in_y[hit]
+        error[hit] = np.minimum(in_x[hit], in_y[hit])
+        grad_x[hit] = np.where(along_x, -np.sign(rel_x[hit]), 0.0)
+        grad_y[hit] = np.where(along_x, 0.0, -np.sign(rel_y[hit]))
+    return error, grad_x, grad_y
 
-    def local(xy: np.ndarray) -> np.ndarray:
-        return (xy - pose[:2]) @ _rotation(pose[2])
 
-    def depth_in_openings(p: np.ndarray) -> np.ndarray:
-        rel = np.abs(p[:, None, :] - scene.HOLE_LOCAL_XY[None])  # (N, holes, 2)
-        return np.max(np.min(half_opening - rel, axis=2), axis=1).clip(min=0.0)
-
-    p_in = local(inside_xy)
-    beyond = np.linalg.norm(np.maximum(np.abs(p_in) - half_board, 0.0), axis=1)
-    inside_error = beyond + depth_in_openings(p_in)
-    p_out = local(outside_xy)
-    within_board = np.min(half_board - np.abs(p_out), axis=1).clip(min=0.0)
-    rel = np.abs(p_out[:, None, :] - scene.HOLE_LOCAL_XY[None])
-    to_opening = np.min(np.linalg.norm(np.maximum(rel - half_opening, 0.0), axis=2), axis=1)
-    outside_error = np.minimum(within_board, to_opening)
-    return np.concatenate([inside_error, outside_error])
+def _outside_error(px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How far (m) points that are not top surface lie within the top (to the nearer of its edge and an
+    opening), and its gradient along ``px``, ``py``."""
+    in_x, in_y = scene.BOARD_SIZE[0] / 2 - np.abs(px), scene.BOARD_SIZE[1] / 2 - np.abs(py)
+    error, grad_x, grad_y = np.zeros_like(px), np.zeros_like(px), np.zeros_like(py)
+    on = np.flatnonzero((in_x > 0.0) & (in_y > 0.0))  # only these can lie within the top
+    along_x = in_x[on] <= in_y[on]
+    on_error = np.where(along_x, in_x[on], in_y[on])
+    on_grad_x = np.where(along_x, -np.sign(px[on]), 0.0)
+    on_grad_y = np.where(along_x, 0.0, -np.sign(py[on]))
+    half_opening = _opening_side() / 2
+    for hole_x, hole_y in scene.HOLE_LOCAL_XY:
+        rel_x, rel_y = px[on] - hole_x, py[on] - hole_y
+        off_x, off_y = np.maximum(np.abs(rel_x) - half_opening, 0.0), np.maximum(np.abs(rel_y) - half_opening, 0.0)
+        to_opening = np.hypot(off_x, off_y)
+        nearer = np.flatnonzero(to_opening < on_error)
+        on_error[nearer] = to_opening[nearer]
+        scale = np.divide(1.0, to_opening[nearer], out=np.zeros(nearer.size), where=to_opening[nearer] > 0.0)
+        on_grad_x[nearer] = np.copysign(off_x[nearer] * scale, rel_x[nearer])
+        on_grad_y[nearer] = np.copysign(off_y[nearer] * scale, rel_y[nearer])
+    error[on], grad_x[on], grad_y[on] = on_error, on_grad_x, on_grad_y
+    return error, grad_x, grad_y
 
 
 def _fit_board(inside_xy: np.ndarray, outside_xy: np.ndarray) -> tuple[np.ndarray, float]:
-    """Board centre (2,) and yaw (rad, within +-90 degrees) that best explain the seen points."""
+    """Board centre (2,) and yaw (rad, within +-90 degrees) that best explain the seen points, fitted from
+    their bounding rectangle's orientation and, unless that fit explains them, from the other one too."""
     (cx, cy), (w, h), angle = cv2.minAreaRect(inside_xy.astype(np.float32))
     yaw0 = math.radians(angle) + (0.0 if h >= w else math.pi / 2)  # the long side is the board's y axis
     yaw0 = (yaw0 + math.pi / 2) % math.pi - math.pi / 2
-    best = None
-    for start in (yaw0, yaw0 + math.pi / 2):
-        fit = least_squares(
-            _board_residuals, np.array([cx, cy, start]), args=(inside_xy, outside_xy),
-            loss="soft_l1", f_scale=BOARD_FIT_SCALE, x_scale=np.array([0.01, 0.01, 0.1]),
-        )
-        if best is None or fit.cost < best.cost:
-            best = fit
+    model = _BoardModel(inside_xy, outside_xy)
+    best = _fit_pose(model, np.array([cx, cy, yaw0]))
+    if best.cost > (len(inside_xy) + len(outside_xy)) * BOARD_EXPLAINED_COST:
+        turned = _fit_pose(model, np.array([cx, cy, yaw0 + math.pi / 2]))
+        best = turned if turned.cost < best.cost else best
     x, y, yaw = best.x
     return np.array([x, y]), float((yaw + math.pi / 2) % math.pi - math.pi / 2)
+
+
+def _fit_pose(model: _BoardModel, start: np.ndarray) -> OptimizeResult:
+    """Robust (soft L1) least-squares board pose from ``start`` = (x, y, yaw)."""
+    return least_squares(model.residuals, start, jac=model.jacobian, loss="soft_l1", f_scale=BOARD_FIT_SCALE,
+                         x_scale=np.array([0.01, 0.01, 0.1]))
 
 
 def _rotation(yaw: float) -> np.ndarray:
@@ -358,15 +502,19 @@ def _rotation(yaw: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def _covered_fraction(camera: Camera, covered: np.ndarray, xy: np.ndarray, surface_z: float) -> float:
-    """Part of the image of the opening at ``xy`` that something above the board covers."""
+def _covered_fractions(camera: Camera, covered: np.ndarray, holes_xy: np.ndarray, surface_z: float) -> list[float]:
+    """Per opening centred at ``holes_xy`` (K, 2) the part of its image that something above the board covers."""
     half = _opening_side() / 2
-    corners = np.array([[xy[0] + dx, xy[1] + dy, surface_z] for dx in (-half, half) for dy in (-half, half)])
-    pixels = camera.project(corners)
-    u0, v0 = np.clip(np.floor(pixels.min(axis=0)).astype(int), 0, None)
-    u1, v1 = np.ceil(pixels.max(axis=0)).astype(int)
-    window = covered[v0:v1, u0:u1]
-    return float(window.mean()) if window.size else 1.0
+    offsets = np.array([[dx, dy] for dx in (-half, half) for dy in (-half, half)])
+    corners = (holes_xy[:, None, :] + offsets).reshape(-1, 2)
+    pixels = camera.project(np.c_[corners, np.full(len(corners), surface_z)]).reshape(len(holes_xy), 4, 2)
+    fractions = []
+    for box in pixels:
+        u0, v0 = np.clip(np.floor(box.min(axis=0)).astype(int), 0, None)
+        u1, v1 = np.ceil(box.max(axis=0)).astype(int)
+        window = covered[v0:v1, u0:u1]
+        fractions.append(float(window.mean()) if window.size else 1.0)
+    return fractions
 
 
 # ------------------------------------------------------------------------------------------ facade
@@ -382,9 +530,11 @@ def locate(
         raise InvalidInputError(f"unknown peg colour(s) {unknown}; accepted: {list(scene.PEG_COLOURS)}")
     rgb, depth = _check_inputs(rgb, depth, camera)
     points = _pixel_points(camera, depth)
+    on_table = _on_table(points)
     masks = _colour_masks(rgb, colours)
-    found = {colour: _locate_peg(colour, masks[colour], points) for colour in colours}
-    holes, board_found, notes = _locate_holes(camera, points)
+    peg_height = _peg_height_points(points, on_table)
+    found = {colour: _locate_peg(colour, masks[colour] & peg_height, points) for colour in colours}
+    holes, board_found, notes = _locate_holes(camera, points, on_table)
     return Detections(
         pegs=tuple(p for p in found.values() if p is not None),
         holes=holes,
