@@ -6,7 +6,9 @@ and the median time of a ``reset``, which builds the physics world afresh every 
 panda-gym installed (``pip install "hoap-actions[bench]"``), each env and control mode is also timed
 against its panda-gym peer (``PandaPickAndPlace-v3`` for PegInsert, ``PandaReach-v3`` for Reach), the two
 taking turns run after run on random actions, and the ratio of their simulated seconds per wall second
-is printed. Both robot models are timed: ``full`` (free-standing) and ``fixed_legs`` (legs welded).
+is printed. Both robot models are timed: ``full`` (free-standing) and ``fixed_legs`` (legs welded), and
+each robot standing in joint_delta against the bare physics of its own world (``Sim.step`` alone), in
+turns in the same run. ee_delta runs at the env's default IK period (``envs.controls.IK_PERIOD``).
 
     python benchmarks/env_speed.py [--runs 5] [--steps 300] [--peers-only] [--robots full fixed_legs]
 
@@ -99,6 +101,31 @@ def compare_with_peers(runs: int, steps: int, sim_seconds_per_step: float, robot
     return out
 
 
+def compare_with_physics_floor(runs: int, steps: int, robots: list[str]) -> list[dict]:
+    """Each robot's joint_delta env standing (zero actions) against the bare physics of the same world
+    (``Sim.step`` alone, as many ticks), the two taking turns ``runs`` times: what the env adds to its
+    physics."""
+    out = []
+    for robot in robots:
+        env_walls, floor_walls = [], []
+        for seed in range(runs):
+            env_walls.append(time_run("hoap_actions/PegInsert-v0", False, steps, seed, "zero", robot=robot))
+            env = gymnasium.make("hoap_actions/PegInsert-v0", robot=robot)
+            env.reset(seed=seed)
+            sim = env.unwrapped.sim  # the benchmark times the simulator itself, under the env
+            start = time.perf_counter()
+            for _ in range(steps):
+                sim.step(PHYSICS_STEPS_PER_ACTION)
+            floor_walls.append(time.perf_counter() - start)
+            env.close()
+        ratio = statistics.median(floor_walls) / statistics.median(env_walls)
+        out.append({"robot": robot, "control_mode": "joint_delta", "actions": "zero", "runs": runs, "steps": steps,
+                    "steps_per_s": steps / statistics.median(env_walls),
+                    "floor_steps_per_s": steps / statistics.median(floor_walls), "ratio_to_floor": ratio})
+        print(f"PegInsert-v0 {robot:10s} joint_delta standing: {ratio:.2f}x its bare physics (same world, same run)")
+    return out
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("env_speed.json")])
     parser.add_argument("--runs", type=int, default=5)
@@ -108,6 +135,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     sim_seconds_per_step = PHYSICS_STEPS_PER_ACTION * TIMESTEP
     peers = compare_with_peers(args.runs, args.steps, sim_seconds_per_step, args.robots)
+    floors = compare_with_physics_floor(args.runs, args.steps, args.robots)
     rows = []
     cases = [(env_id, robot, kind, render) for env_id in hoap_actions.ENV_IDS for robot in args.robots
              for kind, render in (("random", False), ("zero", False), ("random", True))]
@@ -139,7 +167,7 @@ def main(argv: list[str] | None = None) -> dict:
             median = time_resets(env_id, control_mode, 5 * args.runs)
             resets.append({"env_id": env_id, "control_mode": control_mode, "median_reset_ms": 1e3 * median})
             print(f"{env_id:28s} {control_mode:11s} reset {1e3 * median:6.1f} ms (median of {5 * args.runs})")
-    document = {"results": rows, "resets": resets, "peers": peers,
+    document = {"results": rows, "resets": resets, "peers": peers, "physics_floor": floors,
                 "environment": numeric_environment(blas_threads=None)}
     write_json(args.output, document)
     return document

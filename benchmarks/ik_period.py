@@ -78,6 +78,7 @@ def main() -> None:
                 summary = summarise(episodes)
                 row[name] = {key: summary.get(key) for key in
                              ("success_rate", "success_ci95", "falls", "reasons", "hand_error_m", "mean_wall_s")}
+                row[name]["failures"] = [[e.seed, e.reason] for e in episodes if not e.success]
             rows.append(row)
             print(f"{robot} period {period}: {row['steps_per_s']:.0f} steps/s ({row['ratio_to_joint_delta']:.2f}x "
                   f"joint_delta); scripted {row['scripted']['success_rate']:.1%}, phmm "
