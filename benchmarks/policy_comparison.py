@@ -10,7 +10,8 @@ executed hand path.
 
 Held-out layouts for the two robot models (``--robot full`` / ``fixed_legs``), each declared in
 ``docs/experiments/robot.md`` before its run and used once: 60000-60199 for both robots; 62000-62199 and then
-63000-63199 for the two later versions of the welded-legs robot.
+63000-63199 for the two later versions of the welded-legs robot; 64100-64299 and 65000-65199 later; 66000-66199
+(welded legs) and 67000-67199 (free-standing) for the hand controller's IK period and the folded URDF.
 
     python benchmarks/policy_comparison.py [--seeds 30000 30200] [--workers 2] [--models DIR] [--robot fixed_legs]
 

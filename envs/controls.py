@@ -61,8 +61,10 @@ class JointDeltaController:
         self.robot.set_targets(self._target)
 
 
-IK_PERIOD = {"full": 1, "fixed_legs": 1}
-"""Physics ticks per retimer and IK step of ee_delta, per robot model (the env's ``ik_period``)."""
+IK_PERIOD = {"full": 4, "fixed_legs": 1}
+"""Physics ticks per retimer and IK step of ee_delta, per robot model (the env's ``ik_period``): the
+longest that kept the policies' success on validation layouts (``benchmarks/ik_period.py``). The
+welded robot's PHMM policy, whose carried peg turns in the grip, lost layouts at 2 and 4."""
 MAX_HAND_STEP = 0.005  # m per action and axis (30 Hz): 0.15 m/s, the hand reference's speed limit
 HAND_BOX_LOW = np.array([world.WORK_AREA_LOW[0] - 0.04, world.WORK_AREA_LOW[1] - 0.05, 0.015])
 HAND_BOX_HIGH = np.array([world.WORK_AREA_HIGH[0] + 0.04, world.WORK_AREA_HIGH[1] + 0.05, 0.16])
@@ -77,9 +79,10 @@ class EEDeltaController:
     held inside :data:`HAND_BOX_LOW`..:data:`HAND_BOX_HIGH` (``last_clipped`` says when it was held).
     ``action[3]`` is the gripper closure ``clip(a, 0, 1)``: ``<= 0`` open, 1 fully closed; 0.75 just
     touches a 15 mm peg and the squeeze grows with the closure beyond it (0.78 holds a peg firmly).
-    Between actions, every physics tick (:meth:`tick`) a ruckig retimer smooths the desired position
-    under velocity / acceleration / jerk limits and the whole-body IK turns it into joint targets for
-    all 28 joints, feet planted, centre of mass inside the support polygon; while a foot rocks, the
+    Between actions, every ``ik_period`` physics ticks (:data:`IK_PERIOD`) a ruckig retimer smooths the
+    desired position under velocity / acceleration / jerk limits and the whole-body IK turns it into
+    joint targets for all 28 joints, feet planted, centre of mass inside the support polygon, which the
+    servos are led to along a line, tick by tick (:meth:`tick`); while a foot rocks, the
     hand yields to balance and holds where it is. ``hand`` exposes the IK status (``hand.last``),
     whether the target proved unreachable and whether the hand is yielding (``hand.yielding``).
 
