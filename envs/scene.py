@@ -214,7 +214,7 @@ class Scene:
     def hole_positions(self) -> np.ndarray:
         """World centres ``(N_HOLES, 3)`` (m) of the hole openings, on the board's top surface."""
         xy = _holes_xy(*self.board_pose())
-        return np.c_[xy, np.full(N_HOLES, self.board_surface_z)]
+        return np.column_stack([xy, np.full(N_HOLES, self.board_surface_z)])
 
     def peg_pose(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Centre (3,) and quaternion (x, y, z, w) of peg ``i``; its axis is the quaternion's z axis."""

@@ -44,11 +44,11 @@ class PegInsertTask(Task):
         self.peg = self._fixed_peg if self._fixed_peg is not None else int(rng.integers(self.scene.n_pegs))
         self.hole = self._fixed_hole if self._fixed_hole is not None else layout.hole_of_peg[self.peg]
         self._hole_bottom = self.scene.hole_positions()[self.hole] * np.array([1.0, 1.0, 0.0])
+        self._targets_one_hot = np.concatenate([np.eye(self.scene.n_pegs)[self.peg],
+                                                np.eye(scene_module.N_HOLES)[self.hole]])
 
     def observation(self) -> np.ndarray:
-        target_peg = np.eye(self.scene.n_pegs)[self.peg]
-        target_hole = np.eye(scene_module.N_HOLES)[self.hole]
-        return np.concatenate([self.scene_observation(), target_peg, target_hole])
+        return np.concatenate([self.scene_observation(), self._targets_one_hot])
 
     def parse_observation(self, part: np.ndarray) -> dict[str, np.ndarray | int]:
         """``peg_positions`` (n_pegs, 3), ``peg_quaternions`` (n_pegs, 4), ``hole_positions``
