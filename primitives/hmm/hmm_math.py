@@ -26,6 +26,7 @@ from hoap_actions.errors import InvalidInputError
 __all__ = [
     "forward_backward",
     "forward_backward_padded",
+    "inverse_deviations",
     "left_right_transmat",
     "log_gaussian_density",
     "log_gaussian_density_padded",
@@ -157,11 +158,7 @@ def precision_cholesky(covars, covariance_type: str = "full") -> tuple[np.ndarra
     """
     covars = np.asarray(covars, dtype=np.float64)
     if covariance_type == "diag":
-        if covars.ndim != 2:
-            raise InvalidInputError(f"diag covars must be (K, D) variances; got shape {covars.shape}")
-        if not np.all(np.isfinite(covars)) or np.any(covars <= 0):
-            raise InvalidInputError("diag covars must be finite and > 0")
-        inv_sd = 1.0 / np.sqrt(covars)
+        inv_sd = inverse_deviations(covars)
         prec = np.zeros(covars.shape + covars.shape[-1:])
         idx = np.arange(covars.shape[1])
         prec[:, idx, idx] = inv_sd
@@ -180,6 +177,17 @@ def precision_cholesky(covars, covariance_type: str = "full") -> tuple[np.ndarra
     # inv(L) for all K at once; L is lower triangular so so is its inverse.
     prec = np.linalg.solve(chol, np.broadcast_to(np.eye(d), chol.shape))
     return prec, -np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
+
+
+def inverse_deviations(covars) -> np.ndarray:
+    """``1 / sqrt(variances)`` ``(K, D)`` of checked diag covariances: the diagonal of :func:`precision_cholesky`'s P,
+    for callers that apply it elementwise instead of as ``(K, D, D)`` matrices (the same numbers, far fewer)."""
+    covars = np.asarray(covars, dtype=np.float64)
+    if covars.ndim != 2:
+        raise InvalidInputError(f"diag covars must be (K, D) variances; got shape {covars.shape}")
+    if not np.all(np.isfinite(covars)) or np.any(covars <= 0):
+        raise InvalidInputError("diag covars must be finite and > 0")
+    return 1.0 / np.sqrt(covars)
 
 
 def second_moments(X, covariance_type: str = "full") -> np.ndarray:
@@ -241,12 +249,17 @@ def log_gaussian_density_padded(X_pad, means, covars, covariance_type: str = "fu
     if X_pad.ndim != 3:
         raise InvalidInputError(f"padded frames must be (S, T, D); got shape {X_pad.shape}")
     s, t, d = X_pad.shape
-    prec, log_det = precision_cholesky(covars, covariance_type)
-    k = prec.shape[0]
-    if prec.shape[1] != d or means.shape[-2:] != (k, d) or means.ndim not in (2, 3) \
+    if covariance_type == "diag":  # L is diagonal: its products below are elementwise, the same numbers
+        inv_sd = inverse_deviations(covars)
+        lam, log_det = inv_sd * inv_sd, np.log(inv_sd).sum(axis=1)    # (K, D) precisions
+    else:
+        prec, log_det = precision_cholesky(covars, covariance_type)
+        lam = np.matmul(prec.transpose(0, 2, 1), prec)                    # (K, D, D) precisions
+    k = lam.shape[0]
+    if lam.shape[1] != d or means.shape[-2:] != (k, d) or means.ndim not in (2, 3) \
             or (means.ndim == 3 and means.shape[0] != s):
         raise InvalidInputError(
-            f"shapes disagree: frames {X_pad.shape}, means {means.shape}, covariances for K={k}, D={prec.shape[1]}"
+            f"shapes disagree: frames {X_pad.shape}, means {means.shape}, covariances for K={k}, D={lam.shape[1]}"
         )
     if moments is None:
         centre = means.reshape(-1, d).mean(axis=0)
@@ -254,14 +267,14 @@ def log_gaussian_density_padded(X_pad, means, covars, covariance_type: str = "fu
         means = means - centre
         moments = second_moments(X_pad, covariance_type)
     # log N = c_k - x'Lx / 2 + x'L mu - mu'L mu / 2, with c_k = log det P_k - D log(2 pi) / 2.
-    lam = np.matmul(prec.transpose(0, 2, 1), prec)                        # (K, D, D) precisions
     if covariance_type == "diag":
-        weights = -0.5 * np.diagonal(lam, axis1=1, axis2=2).T              # (D, K)
+        weights = -0.5 * lam.T                                             # (D, K)
+        lam_mu = lam * means                                               # (K, D) or (S, K, D)
     else:
         iu = np.triu_indices(d)
         weights = -(1.0 - 0.5 * (iu[0] == iu[1]))[:, None] * lam[:, iu[0], iu[1]].T  # (M, K)
+        lam_mu = np.einsum("kde,...ke->...kd", lam, means)
     out = (moments.reshape(s * t, -1) @ weights).reshape(s, t, k)
-    lam_mu = np.einsum("kde,...ke->...kd", lam, means)                    # (K, D) or (S, K, D)
     if means.ndim == 2:
         out += (X_pad.reshape(s * t, d) @ lam_mu.T).reshape(s, t, k)
     else:

@@ -470,10 +470,7 @@ class ParametricHMM(Estimator):
             raise InvalidInputError(f"n_restarts and n_iter must be ints >= 1; got {n_restarts!r}, {n_iter!r}")
         if self.phi_dim_ == 0:
             return np.zeros(0), self.score(X, np.zeros(0))
-        rng = np.random.default_rng(self.random_state)
-        train = self.train_phi_
-        picks = rng.choice(train.shape[0], size=min(int(n_restarts) - 1, train.shape[0]), replace=False)
-        phis = np.vstack([train.mean(axis=0, keepdims=True), train[picks]])
+        phis = self._restart_phis(n_restarts)
         r = phis.shape[0]
         offset = self.mean_bar_.mean(axis=0)
         batch = SequenceBatch.build(np.tile(X, (r, 1)), np.full(r, X.shape[0]), phis, offset, self.covariance_type)
@@ -487,6 +484,14 @@ class ParametricHMM(Estimator):
         ll = self._e_step(batch)[0]
         best = int(np.argmax(ll))
         return batch.phi[best].copy(), float(ll[best])
+
+    def _restart_phis(self, n_restarts: int) -> np.ndarray:
+        """Where :meth:`estimate_phi` starts its EMs ``(r, p)``: the mean training effect, then up to
+        ``n_restarts - 1`` distinct training effects drawn with ``random_state``."""
+        rng = np.random.default_rng(self.random_state)
+        train = self.train_phi_
+        picks = rng.choice(train.shape[0], size=min(int(n_restarts) - 1, train.shape[0]), replace=False)
+        return np.vstack([train.mean(axis=0, keepdims=True), train[picks]])
 
     # ----------------------------------------------------------------------------- synthesis
     def synthesize(self, phi, n_frames: int | None = None) -> np.ndarray:

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from hoap_actions.errors import IdentifiabilityError
-from hoap_actions.primitives.hmm.hmm_math import precision_cholesky
+from hoap_actions.primitives.hmm.hmm_math import inverse_deviations, precision_cholesky
 from hoap_actions.primitives.hmm.phmm_batch import SequenceBatch
 
 __all__ = ["phi_gauss_newton", "phi_update"]
@@ -24,13 +24,21 @@ def phi_update(model: Any, batch: SequenceBatch, gamma: np.ndarray) -> np.ndarra
     means) or a damped Gauss-Newton step towards it (bending means)."""
     if model.V_.shape[2]:
         return phi_gauss_newton(model, batch, gamma)
-    prec, _ = precision_cholesky(model.covars_, model.covariance_type)
-    pw = np.matmul(prec, model.W_)                                          # (K, D, p): P_j W_j
-    pm = np.einsum("kij,kj->ki", prec, model.mean_bar_ - batch.offset)      # (K, D):    P_j mu_bar_j
     occ = gamma.sum(axis=1)                                                # (S, K)
     occ_x = np.matmul(gamma.transpose(0, 2, 1), batch.X)                   # (S, K, D)
-    lhs = np.einsum("sk,kdp,kdq->spq", occ, pw, pw)
-    resid = np.einsum("kij,skj->ski", prec, occ_x) - occ[:, :, None] * pm[None]
+    if model.covariance_type == "diag":  # P_j is diagonal: the same products, elementwise
+        inv_sd = inverse_deviations(model.covars_)
+        pw = inv_sd[:, :, None] * model.W_
+        pm = inv_sd * (model.mean_bar_ - batch.offset)
+        white_x = inv_sd * occ_x
+    else:
+        prec, _ = precision_cholesky(model.covars_, model.covariance_type)
+        pw = np.matmul(prec, model.W_)                                      # (K, D, p): P_j W_j
+        pm = np.einsum("kij,kj->ki", prec, model.mean_bar_ - batch.offset)  # (K, D):    P_j mu_bar_j
+        white_x = np.einsum("kij,skj->ski", prec, occ_x)                    # (S, K, D): P_j sum_t g x_t
+    gram = np.einsum("kdp,kdq->kpq", pw, pw)                               # (K, p, p): W_j^T S_j^-1 W_j
+    lhs = np.einsum("sk,kpq->spq", occ, gram)
+    resid = white_x - occ[:, :, None] * pm[None]
     rhs = np.einsum("kdp,skd->sp", pw, resid)
     try:
         return np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]

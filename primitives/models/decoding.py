@@ -11,6 +11,7 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, UNKNOWN
+from hoap_actions.primitives.hmm.phi_estimates import estimate_phis
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.class_models import EFFECT_DIM, DecodedSegment, SegmentRecognition, marker_features
 from hoap_actions.primitives.models.connected_recognition import ChainedHMM, chain_classes
@@ -49,19 +50,25 @@ class ActionDecoding:
         is classified as the decoder would classify it between those cuts. Phi is then estimated with
         the PHMMs of the ``n_candidates`` best classes (the others get none).
         """
-        return self._recognize_features(self.features(H))
+        return self._recognize_pieces([self.features(H)])[0]
 
-    def _recognize_features(self, X: np.ndarray) -> SegmentRecognition:
+    def _recognize_pieces(self, pieces: list[np.ndarray]) -> list[SegmentRecognition]:
+        """:meth:`recognize` of each piece's features, the phis of all pieces' candidates estimated in one batch."""
         chained = self.chained()
-        marginal = chained.class_scores(self.connected_log_emissions(X))
-        scores = {int(c): float(v) for c, v in zip(chained.class_ids, marginal)}
-        best = [int(chained.class_ids[i]) for i in np.argsort(-marginal, kind="stable")[: self.n_candidates]
-                if np.isfinite(marginal[i])]
-        if not best:  # shorter than every chain: no class explains it
-            return SegmentRecognition(-1, np.full(EFFECT_DIM, np.nan), scores, {})
-        phis = {c: self.classes_[c].full_phi(self.classes_[c].phmm.estimate_phi(X, n_restarts=self.n_restarts))
-                for c in best}
-        return SegmentRecognition(best[0], phis[best[0]], scores, phis)
+        marginals = [chained.class_scores(self.connected_log_emissions(X)) for X in pieces]
+        candidates = [[int(chained.class_ids[i]) for i in np.argsort(-marginal, kind="stable")[: self.n_candidates]
+                       if np.isfinite(marginal[i])] for marginal in marginals]
+        jobs = [(self.classes_[c].phmm, X) for X, best in zip(pieces, candidates) for c in best]
+        estimates = iter(estimate_phis(jobs, n_restarts=self.n_restarts))
+        recognitions = []
+        for marginal, best in zip(marginals, candidates):
+            scores = {int(c): float(v) for c, v in zip(chained.class_ids, marginal)}
+            if not best:  # shorter than every chain: no class explains it
+                recognitions.append(SegmentRecognition(-1, np.full(EFFECT_DIM, np.nan), scores, {}))
+                continue
+            phis = {c: self.classes_[c].full_phi(next(estimates)) for c in best}
+            recognitions.append(SegmentRecognition(best[0], phis[best[0]], scores, phis))
+        return recognitions
 
     def decode_segments(self, segments: Sequence[np.ndarray]) -> list[SegmentRecognition]:
         """Recognise the consecutive pieces of one demonstration together, through the grammar.
@@ -73,24 +80,43 @@ class ActionDecoding:
         returned recognition carries the decoded class and that class's phi. A piece no class
         explains, or a demonstration the strict grammar cannot parse, keeps its isolated class.
         """
-        if isinstance(segments, np.ndarray) or not len(segments):
-            raise InvalidInputError("segments must be a non-empty list of movements, one (T, M, 3) array per piece")
-        recognitions = [self.recognize(piece) for piece in segments]
-        decoded = self._decode(recognitions)
-        votes = self.object_votes(segments, [r.class_id for r in decoded])
-        return decoded if votes is None else self._decode(recognitions, votes)
+        return self.decode_demonstrations([segments])[0]
+
+    def decode_demonstrations(self, demonstrations: Sequence[Sequence[np.ndarray]]) -> list[list[SegmentRecognition]]:
+        """:meth:`decode_segments` of each demonstration's pieces, the phis of all their candidates estimated
+        in one batch: faster than one demonstration at a time, as the EMs that converge last share frames."""
+        for segments in demonstrations:
+            if isinstance(segments, np.ndarray) or not len(segments):
+                raise InvalidInputError("segments must be a non-empty list of movements, one (T, M, 3) array per "
+                                        "piece")
+        recognitions = self._recognize_pieces([self.features(piece) for segments in demonstrations
+                                               for piece in segments])
+        bounds = np.cumsum([0] + [len(segments) for segments in demonstrations])
+        recognitions = [recognitions[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        decoded = [self._decode(pieces) for pieces in recognitions]
+        votes = self._object_votes([(segments, [r.class_id for r in pieces])
+                                    for segments, pieces in zip(demonstrations, decoded)])
+        return [first if vote is None else self._decode(pieces, vote)
+                for pieces, first, vote in zip(recognitions, decoded, votes)]
 
     def object_votes(self, segments: Sequence[np.ndarray], class_ids: Sequence[int]) -> list[int] | None:
         """Each consecutive piece's class (its frames' majority) in :meth:`object_parse` of the pieces'
         markers, the manipulation being the pieces from the first to the last of ``class_ids`` that is a
         manipulation class; -1 where the parse knows no class; ``None`` when :meth:`object_parse` gives none."""
-        lengths = [len(piece) for piece in segments]
-        H = np.concatenate([np.asarray(piece, dtype=float).reshape(len(piece), -1) for piece in segments])
-        labels = self.object_parse(H, np.repeat(np.asarray(class_ids, dtype=int), lengths))
-        if labels is None:
-            return None
-        bounds = np.cumsum([0] + lengths)
-        return [int(np.bincount(labels[a:b] - UNKNOWN).argmax()) + UNKNOWN for a, b in zip(bounds[:-1], bounds[1:])]
+        return self._object_votes([(segments, class_ids)])[0]
+
+    def _object_votes(self, demonstrations: Sequence[tuple[Sequence[np.ndarray], Sequence[int]]]
+                      ) -> list[list[int] | None]:
+        """:meth:`object_votes` of several demonstrations' (pieces, classes), parsed in one batch."""
+        movements, bounds = [], []
+        for segments, class_ids in demonstrations:
+            lengths = [len(piece) for piece in segments]
+            H = np.concatenate([np.asarray(piece, dtype=float).reshape(len(piece), -1) for piece in segments])
+            movements.append((H, np.repeat(np.asarray(class_ids, dtype=int), lengths)))
+            bounds.append(np.cumsum([0] + lengths))
+        return [None if labels is None else
+                [int(np.bincount(labels[a:b] - UNKNOWN).argmax()) + UNKNOWN for a, b in zip(cuts[:-1], cuts[1:])]
+                for labels, cuts in zip(self.object_parses(movements), bounds)]
 
     def object_parse(self, H: np.ndarray, frame_classes: np.ndarray) -> np.ndarray | None:
         """Discovery's class of every frame (``UNKNOWN`` where it knows none) in its parse of the object
@@ -98,16 +124,25 @@ class ActionDecoding:
         (:mod:`~hoap_actions.primitives.models.object_estimate`), the hand moving the object from the first to
         the last frame that ``frame_classes`` ``(T,)`` gives a manipulation class. ``None`` when the
         models cannot vote (``object_vote`` 0, no grasp offset) or no frame is a manipulation."""
+        return self.object_parses([(H, frame_classes)])[0]
+
+    def object_parses(self, movements: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray | None]:
+        """:meth:`object_parse` of several movements' ``(H, frame_classes)``: discovery parses them in one
+        batch, which shares its Viterbi's steps."""
         check_is_fitted(self)
         if self.object_vote == 0 or self.grasp_offset_ is None:
-            return None
-        manipulations = {c for c, m in self.classes_.items() if m.kind == MANIPULATION}
-        moving = np.flatnonzero(np.isin(frame_classes, list(manipulations)))
-        if not moving.size:
-            return None
-        H = np.asarray(H, dtype=float).reshape(len(H), len(self.marker_names_), 3)
-        poses = object_poses(H, self.marker_names_, int(moving[0]), int(moving[-1]) + 1, self.grasp_offset_)
-        return self.discovery_.predict(poses, [len(poses)])[0]
+            return [None] * len(movements)
+        manipulations = [c for c, m in self.classes_.items() if m.kind == MANIPULATION]
+        poses = {}
+        for i, (H, frame_classes) in enumerate(movements):
+            moving = np.flatnonzero(np.isin(frame_classes, manipulations))
+            if moving.size:
+                H = np.asarray(H, dtype=float).reshape(len(H), len(self.marker_names_), 3)
+                poses[i] = object_poses(H, self.marker_names_, int(moving[0]), int(moving[-1]) + 1,
+                                        self.grasp_offset_)
+        parses = iter(self.discovery_.predict(np.concatenate(list(poses.values())), [len(p) for p in poses.values()])
+                      if poses else ())
+        return [next(parses) if i in poses else None for i in range(len(movements))]
 
     def _decode(self, recognitions: list[SegmentRecognition], votes: Sequence[int] | None = None
                 ) -> list[SegmentRecognition]:
@@ -153,24 +188,42 @@ class ActionDecoding:
     def decode_features(self, X: np.ndarray, log_emissions: np.ndarray) -> list[DecodedSegment]:
         """:meth:`decode` from a movement's features and their :meth:`connected_log_emissions`, for a
         caller that uses the emissions too (the recognition report's baseline)."""
+        return self.decode_movements([(X, log_emissions)])[0]
+
+    def decode_movements(self, movements: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[list[DecodedSegment]]:
+        """:meth:`decode_features` of several movements' ``(X, log_emissions)``, their object parses and
+        their segments' phis each computed in one batch (faster than one movement at a time)."""
         chained = self.chained()
-        labels, score = chained.viterbi(log_emissions)
-        if not np.isfinite(score):
-            return []
         ids = chained.class_ids
-        parse = self.object_parse(X[:, : 3 * len(self.marker_names_)], ids[labels])
-        if parse is not None:  # each frame's class in the parse gets object_vote nats, and Viterbi runs again
-            parsed = np.searchsorted(ids, parse).clip(0, len(ids) - 1)  # ids are sorted
-            voted = (ids[parsed] == parse)[:, None] & (chained.state_class[None, :] == parsed[:, None])
-            relabelled, score = chained.viterbi(log_emissions + self.object_vote * voted)
-            labels = relabelled if np.isfinite(score) else labels
-        decoded = []
-        for index, start, end in runs(labels):
-            model = self.classes_[int(ids[index])]
-            phi = (model.full_phi(model.phmm.estimate_phi(X[start:end], n_restarts=self.n_restarts))
-                   if end - start >= model.phmm.min_frames else np.full(EFFECT_DIM, np.nan))
-            decoded.append(DecodedSegment(model.class_id, int(start), int(end), phi))
+        found = [chained.viterbi(log_emissions) for _, log_emissions in movements]
+        paths = [i for i, (_, score) in enumerate(found) if np.isfinite(score)]  # none: nothing decoded
+        parses = self.object_parses([(movements[i][0][:, : 3 * len(self.marker_names_)], ids[found[i][0]])
+                                     for i in paths])
+        labels = [self._voted_labels(movements[i][1], found[i][0], parse) for i, parse in zip(paths, parses)]
+        pieces = [[(i, self.classes_[int(ids[index])], int(start), int(end)) for index, start, end in runs(path)]
+                  for i, path in zip(paths, labels)]
+        ok = [[end - start >= model.phmm.min_frames for _, model, start, end in cut] for cut in pieces]
+        jobs = [(model.phmm, movements[i][0][start:end]) for cut, fits in zip(pieces, ok)
+                for (i, model, start, end), fit in zip(cut, fits) if fit]
+        estimates = iter(estimate_phis(jobs, n_restarts=self.n_restarts))
+        decoded: list[list[DecodedSegment]] = [[] for _ in movements]
+        for cut, fits in zip(pieces, ok):
+            for (i, model, start, end), fit in zip(cut, fits):
+                phi = model.full_phi(next(estimates)) if fit else np.full(EFFECT_DIM, np.nan)
+                decoded[i].append(DecodedSegment(model.class_id, start, end, phi))
         return decoded
+
+    def _voted_labels(self, log_emissions: np.ndarray, labels: np.ndarray, parse: np.ndarray | None) -> np.ndarray:
+        """Each frame's class index after the object's vote: Viterbi again with each frame's class in ``parse``
+        ``object_vote`` nats the likelier (``labels`` kept without a parse or a path)."""
+        if parse is None:
+            return labels
+        chained = self.chained()
+        ids = chained.class_ids
+        parsed = np.searchsorted(ids, parse).clip(0, len(ids) - 1)  # ids are sorted
+        voted = (ids[parsed] == parse)[:, None] & (chained.state_class[None, :] == parsed[:, None])
+        relabelled, score = chained.viterbi(log_emissions + self.object_vote * voted)
+        return relabelled if np.isfinite(score) else labels
 
     def chained(self) -> ChainedHMM:
         """The classes' chains joined by the grammar, over the training effects (built once)."""

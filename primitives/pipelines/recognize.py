@@ -22,11 +22,14 @@ by more than half (its frames and theirs), then the median.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import sys
 import time
 import warnings
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 from tqdm import tqdm
@@ -36,7 +39,7 @@ from hoap_actions.errors import InvalidInputError, UnseenDemonstratorWarning
 from hoap_actions.parallel import ordered_map
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, UNKNOWN
 from hoap_actions.primitives.labels import runs
-from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.action_models import ActionModels, DecodedSegment
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 
 logger = logging.getLogger(__name__)
@@ -59,7 +62,8 @@ def edit_score(predicted: list, truth: list) -> float:
 
 @dataclass(frozen=True)
 class EpisodeScores:
-    """One episode's counts: frames right / scored, true segments right / all, edit score, effect errors (m)."""
+    """One episode's counts: frames right / scored, true segments right / all, edit score, effect errors (m);
+    ``decode_s`` is its share of the time its group of episodes took to decode (:data:`EPISODES_PER_JOB`)."""
 
     frames_right: int
     frames: int
@@ -74,7 +78,15 @@ class EpisodeScores:
     baseline_edit: float
 
 
+EPISODES_PER_JOB = 4
+"""Episodes a worker scores at a time: their labels are decoded, and their true segments recognised, in
+batches (the effect EMs that converge last, and discovery's Viterbi, then share their frames); few enough
+that the workers stay evenly loaded. The figures do not depend on ``jobs``, which only decides who scores
+each group."""
+
 _WORKER: dict = {}
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""What OpenBLAS, OpenMP and MKL builds read for their thread count when a process loads them."""
 
 
 def _start_worker(models: ActionModels, hand_marker: int, oracle: bool) -> None:
@@ -82,19 +94,32 @@ def _start_worker(models: ActionModels, hand_marker: int, oracle: bool) -> None:
     _WORKER.update(models=models, hand_marker=hand_marker, oracle=oracle)
 
 
-def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
-    episode, truth = job
+def _score_episodes(job: list[tuple[Episode, np.ndarray]]) -> list[EpisodeScores]:
+    """Score a few episodes: all their labels decoded together, then (``oracle``) all their true segments
+    recognised together."""
     models: ActionModels = _WORKER["models"]
+    true_runs = [[r for r in runs(truth) if r[0] != UNKNOWN] for _, truth in job]
     started = time.perf_counter()
-    X = models.features(episode.H)
-    log_emissions = models.connected_log_emissions(X)  # the decoder's evidence, and the baseline's
-    decoded = models.decode_features(X, log_emissions)
-    decode_s = time.perf_counter() - started
+    features = [models.features(episode.H) for episode, _ in job]
+    movements = [(X, models.connected_log_emissions(X)) for X in features]  # the decoder's evidence, and the baseline's
+    decoded = models.decode_movements(movements)
+    decode_s = (time.perf_counter() - started) / len(job)  # each episode's share
+    scores = [_label_scores(episode, truth, cuts, segments, log_emissions, decode_s)
+              for (episode, truth), cuts, segments, (_, log_emissions) in zip(job, true_runs, decoded, movements)]
+    if not _WORKER["oracle"]:
+        return scores
+    return [replace(s, oracle_right=right, oracle_phi_errors=errors)
+            for s, (right, errors) in zip(scores, _oracle_scores([episode for episode, _ in job], true_runs))]
+
+
+def _label_scores(episode: Episode, truth: np.ndarray, true_runs: list[tuple[int, int, int]],
+                  decoded: list[DecodedSegment], log_emissions: np.ndarray, decode_s: float) -> EpisodeScores:
+    """An episode's scores from its movement alone, decoded into ``decoded`` (its oracle counts left 0)."""
+    models: ActionModels = _WORKER["models"]
     predicted = np.full(episode.T, -2)
     for segment in decoded:
         predicted[segment.start:segment.end] = segment.class_id
     known = truth != UNKNOWN
-    true_runs = [r for r in runs(truth) if r[0] != UNKNOWN]
     segments_right = sum(int(np.bincount(predicted[a:b] + 2).argmax()) - 2 == c for c, a, b in true_runs)
     errors = []
     for segment in decoded:
@@ -103,13 +128,6 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
             if c == segment.class_id and overlap > 0.5 * max(b - a, segment.end - segment.start):
                 errors.append(_phi_error(segment.phi, _true_phi(episode, c, a, b, models)))
     baseline = models.chained().class_ids[models.chained().state_class[log_emissions.argmax(axis=1)]]
-    oracle_right, oracle_errors = 0, []
-    if _WORKER["oracle"] and true_runs:
-        recognised = models.decode_segments([episode.H[a:b] for _, a, b in true_runs])
-        for (c, a, b), rec in zip(true_runs, recognised):
-            if rec.class_id == c:
-                oracle_right += 1
-                oracle_errors.append(_phi_error(rec.phi, _true_phi(episode, c, a, b, models)))
     return EpisodeScores(
         frames_right=int(np.sum(predicted[known] == truth[known])),
         frames=int(known.sum()),
@@ -117,12 +135,51 @@ def _score_episode(job: tuple[Episode, np.ndarray]) -> EpisodeScores:
         segments=len(true_runs),
         edit=edit_score([v for v, *_ in runs(predicted)], [c for c, *_ in true_runs]),
         phi_errors=tuple(e for e in errors if np.isfinite(e)),
-        oracle_right=oracle_right,
-        oracle_phi_errors=tuple(e for e in oracle_errors if np.isfinite(e)),
+        oracle_right=0,
+        oracle_phi_errors=(),
         decode_s=decode_s,
         baseline_frames_right=int(np.sum(baseline[known] == truth[known])),
         baseline_edit=edit_score([v for v, *_ in runs(baseline)], [c for c, *_ in true_runs]),
     )
+
+
+def _oracle_scores(episodes: list[Episode], true_runs: list[list[tuple[int, int, int]]]
+                   ) -> list[tuple[int, tuple[float, ...]]]:
+    """Per episode, its true segments recognised with their cuts given: how many right, and their effect errors."""
+    models: ActionModels = _WORKER["models"]
+    cut = [i for i, cuts in enumerate(true_runs) if cuts]
+    recognised = models.decode_demonstrations([[episodes[i].H[a:b] for _, a, b in true_runs[i]] for i in cut])
+    scores = [(0, ())] * len(episodes)
+    for i, recognitions in zip(cut, recognised):
+        right = [(c, a, b, rec) for (c, a, b), rec in zip(true_runs[i], recognitions) if rec.class_id == c]
+        errors = (_phi_error(rec.phi, _true_phi(episodes[i], c, a, b, models)) for c, a, b, rec in right)
+        scores[i] = (len(right), tuple(e for e in errors if np.isfinite(e)))
+    return scores
+
+
+def _scored(chunks: list[list[tuple[Episode, np.ndarray]]], initargs: tuple, jobs: int
+            ) -> Iterator[list[EpisodeScores]]:
+    """Each chunk's scores, in order: in this process (one job) or on ``jobs`` worker processes."""
+    if jobs == 1:
+        _start_worker(*initargs)
+        yield from map(_score_episodes, chunks)
+        return
+    with _one_blas_thread_per_worker():
+        yield from ordered_map(_score_episodes, chunks, _start_worker, initargs, jobs)
+
+
+@contextlib.contextmanager
+def _one_blas_thread_per_worker() -> Iterator[None]:
+    """Worker processes spawned meanwhile use one BLAS thread each (unless the caller's environment says
+    otherwise): ``jobs`` workers then share ``jobs`` cores, where BLAS's default of a thread per core in
+    every worker oversubscribes them and its threads wait on each other (several times slower products)."""
+    unset = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
+    os.environ.update(dict.fromkeys(unset, "1"))
+    try:
+        yield
+    finally:
+        for name in unset:
+            os.environ.pop(name, None)
 
 
 def _warn_if_unseen(models: ActionModels, demos: Demonstrations) -> None:
@@ -169,15 +226,16 @@ def recognize_recording(
     started = time.perf_counter()
     demos = clean_demonstrations(demos)
     truth = models.discovery_.predict(np.concatenate([e.O for e in demos]), [e.T for e in demos])
-    jobs_list = list(zip(demos, truth))
+    episodes = list(zip(demos, truth))
+    chunks = [episodes[i:i + EPISODES_PER_JOB] for i in range(0, len(episodes), EPISODES_PER_JOB)]
     initargs = (models, models.discovery_.hand_marker, oracle)
-    bar = dict(total=len(jobs_list), desc="recognising episodes", unit="episode",
+    bar = tqdm(total=len(episodes), desc="recognising episodes", unit="episode",
                disable=not (progress and sys.stderr.isatty()))
-    if jobs == 1:
-        _start_worker(*initargs)
-        scores = [_score_episode(job) for job in tqdm(jobs_list, **bar)]
-    else:
-        scores = list(tqdm(ordered_map(_score_episode, jobs_list, _start_worker, initargs, jobs), **bar))
+    scores: list[EpisodeScores] = []
+    with bar:
+        for chunk in _scored(chunks, initargs, jobs):
+            scores += chunk
+            bar.update(len(chunk))
     wall = time.perf_counter() - started
     frames = sum(s.frames for s in scores)
     segments = sum(s.segments for s in scores)
