@@ -95,7 +95,7 @@ def _robot_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="full", choices=list(ROBOT_MODELS),
                         help="full: the free-standing humanoid (default); fixed_legs: bolted at the pelvis, legs "
                              "welded "
-                             "(it cannot fall, and it simulates 4.4x faster in joint_delta, 2.1x in ee_delta)")
+                             "(it cannot fall, and it simulates 3.8x faster in joint_delta, 2.0x in ee_delta)")
 
 
 def _ray_option(parser: argparse.ArgumentParser, what: str) -> None:

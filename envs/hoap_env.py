@@ -88,7 +88,7 @@ class HoapEnv(gymnasium.Env):
 
     Robot (``robot``): ``"full"``, the free-standing humanoid (default), or ``"fixed_legs"``, the same
     robot bolted at the pelvis with its legs welded in the standing posture: it cannot fall, and it
-    simulates 4.4x faster (joint_delta; 2.1x in ee_delta, whose free-standing IK steps every 4 ticks).
+    simulates 3.8x faster (joint_delta; 2.0x in ee_delta, whose free-standing IK steps every 4 ticks).
     Observations have the same layout for both.
 
     Actions: a Box in [-1, 1] (see the control mode); values outside it are clipped to it, as
