@@ -24,23 +24,14 @@ import hoap_actions  # noqa: F401  (registers the environments)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json
+from env_speed import time_run
 
 ENV_ID = "hoap_actions/PegInsert-v0"
 
 
 def single_rate(steps: int, seed: int, **kwargs) -> float:
     """Env steps per wall second of one env in this process."""
-    env = gymnasium.make(ENV_ID, **kwargs)
-    env.reset(seed=seed)
-    env.action_space.seed(seed)
-    start = time.perf_counter()
-    for _ in range(steps):
-        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if terminated or truncated:
-            env.reset()
-    elapsed = time.perf_counter() - start
-    env.close()
-    return steps / elapsed
+    return steps / time_run(ENV_ID, False, steps, seed, "random", **kwargs)
 
 
 def vector_rate(n_envs: int, steps: int, seed: int, **kwargs) -> tuple[float, float]:

@@ -225,9 +225,8 @@ class HandController:
             self._q_from = self._q_to
             self._q_to = self._plan().q
         self._phase += 1
-        q = self._q_to if self._phase == self.ik_period else (
+        q = self._q_to.copy() if self._phase == self.ik_period else (
             self._q_from + (self._phase / self.ik_period) * (self._q_to - self._q_from))
-        q = q.copy()
         q[self._gripper] = self.robot.targets[self._gripper]  # the gripper is commanded separately
         self.robot.set_targets(q)
         self._phase %= self.ik_period

@@ -395,14 +395,13 @@ class Sim:
         forces = np.asarray(forces, dtype=float).tolist()
         max_velocities = np.asarray(max_velocities, dtype=float).tolist()
         sent = self._sent_max_velocity.setdefault(body, {})
-        if [sent.get(j) for j in indices] != max_velocities:
-            for j, q, f, v in zip(indices, positions, forces, max_velocities):
-                if sent.get(j) != v:
-                    self._p.setJointMotorControl2(
-                        body, j, pybullet.POSITION_CONTROL, targetPosition=q, force=f, maxVelocity=v,
-                        positionGain=position_gain, velocityGain=velocity_gain,
-                    )
-                    sent[j] = v
+        for j, q, f, v in zip(indices, positions, forces, max_velocities):
+            if sent.get(j) != v:
+                self._p.setJointMotorControl2(
+                    body, j, pybullet.POSITION_CONTROL, targetPosition=q, force=f, maxVelocity=v,
+                    positionGain=position_gain, velocityGain=velocity_gain,
+                )
+                sent[j] = v
         n = len(indices)
         self._p.setJointMotorControlArray(
             body, indices, pybullet.POSITION_CONTROL, targetPositions=positions, forces=forces,

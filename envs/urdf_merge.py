@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import write_bytes
 
 _MERGED_DIR: tempfile.TemporaryDirectory | None = None
@@ -96,15 +97,28 @@ def _fold(host: ET.Element, folded: ET.Element, rotation: np.ndarray, translatio
 
 def merge_fixed_links(urdf_text: str, base_dir: Path) -> str:
     """The URDF with every fixed joint's child folded into its parent; mesh paths made absolute
-    against ``base_dir`` so the result loads from anywhere."""
+    against ``base_dir`` so the result loads from anywhere. A file that is not a URDF tree (bad XML,
+    a joint without parent or child, a link named twice or missing, a loop of joints) is an
+    :class:`InvalidInputError`."""
+    try:
+        return _merged(urdf_text, base_dir)
+    except (ET.ParseError, AttributeError, KeyError, ValueError, TypeError) as exc:
+        raise InvalidInputError(f"not a URDF whose fixed links can be merged: {type(exc).__name__}: {exc}") from None
+
+
+def _merged(urdf_text: str, base_dir: Path) -> str:
     robot = ET.fromstring(urdf_text)
     links = {link.get("name"): link for link in robot.findall("link")}
     joints = robot.findall("joint")
     parent_of = {joint.find("child").get("link"): joint for joint in joints}
+    if len(links) != len(robot.findall("link")) or len(parent_of) != len(joints):
+        raise ValueError("a link is named twice, or is the child of two joints")
 
     def depth(joint: ET.Element) -> int:
         n, link = 0, joint.find("parent").get("link")
         while link in parent_of:
+            if n > len(joints):
+                raise ValueError(f"the joints loop back through link {link!r}")
             n, link = n + 1, parent_of[link].find("parent").get("link")
         return n
 

@@ -10,6 +10,7 @@ import pytest
 
 from hoap_actions.envs.sim import Sim
 from hoap_actions.envs.urdf_merge import merge_fixed_links
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.urdf import urdf_path
 
 TWO_LINKS = """<robot name="r">
@@ -41,6 +42,19 @@ def test_a_point_mass_folds_by_the_parallel_axis_theorem() -> None:
     xyz = [float(v) for v in collision.find("origin").get("xyz").split()]
     np.testing.assert_allclose(xyz, [0.4, 0.1, 0.5], atol=1e-12)
     assert link.find("visual/geometry/mesh").get("filename") == str(Path("/models/part.obj").resolve())
+
+
+@pytest.mark.parametrize("text", [
+    "<robot><link name='a'>",  # not XML
+    "<robot><link name='a'/><joint name='j' type='fixed'><parent link='a'/></joint></robot>",  # no child
+    "<robot><link name='a'/><link name='b'/>"  # a loop of joints
+    "<joint name='j' type='fixed'><parent link='a'/><child link='b'/></joint>"
+    "<joint name='k' type='fixed'><parent link='b'/><child link='a'/></joint></robot>",
+    "<robot><link name='a'/><joint name='j' type='fixed'><parent link='a'/><child link='z'/></joint></robot>",
+])
+def test_a_file_that_is_not_a_urdf_tree_is_refused(text: str) -> None:
+    with pytest.raises(InvalidInputError, match="not a URDF"):
+        merge_fixed_links(text, Path("/models"))
 
 
 def _loaded(merge: bool) -> Sim:
