@@ -10,6 +10,7 @@ import os
 import numpy as np
 import pytest
 
+from hoap_actions import parallel
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.primitives.discovery.estimator import UNKNOWN
@@ -176,7 +177,7 @@ def test_workers_are_given_one_blas_thread_unless_the_environment_says_otherwise
     monkeypatch.setenv("OMP_NUM_THREADS", "3")
     for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         monkeypatch.delenv(name, raising=False)
-    with recognize._one_blas_thread_per_worker():
+    with parallel._one_blas_thread_per_worker():
         assert (os.environ["OPENBLAS_NUM_THREADS"], os.environ["MKL_NUM_THREADS"]) == ("1", "1")
         assert os.environ["OMP_NUM_THREADS"] == "3"
     assert "OPENBLAS_NUM_THREADS" not in os.environ and "MKL_NUM_THREADS" not in os.environ

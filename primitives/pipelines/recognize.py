@@ -22,9 +22,7 @@ by more than half (its frames and theirs), then the median.
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
 import sys
 import time
 import warnings
@@ -85,9 +83,6 @@ that the workers stay evenly loaded. The figures do not depend on ``jobs``, whic
 each group."""
 
 _WORKER: dict = {}
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-"""What OpenBLAS, OpenMP and MKL builds read for their thread count when a process loads them."""
-
 
 def _start_worker(models: ActionModels, hand_marker: int, oracle: bool) -> None:
     """Give a worker process the models once, not with every episode."""
@@ -164,22 +159,7 @@ def _scored(chunks: list[list[tuple[Episode, np.ndarray]]], initargs: tuple, job
         _start_worker(*initargs)
         yield from map(_score_episodes, chunks)
         return
-    with _one_blas_thread_per_worker():
-        yield from ordered_map(_score_episodes, chunks, _start_worker, initargs, jobs)
-
-
-@contextlib.contextmanager
-def _one_blas_thread_per_worker() -> Iterator[None]:
-    """Worker processes spawned meanwhile use one BLAS thread each (unless the caller's environment says
-    otherwise): ``jobs`` workers then share ``jobs`` cores, where BLAS's default of a thread per core in
-    every worker oversubscribes them and its threads wait on each other (several times slower products)."""
-    unset = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
-    os.environ.update(dict.fromkeys(unset, "1"))
-    try:
-        yield
-    finally:
-        for name in unset:
-            os.environ.pop(name, None)
+    yield from ordered_map(_score_episodes, chunks, _start_worker, initargs, jobs)
 
 
 def _warn_if_unseen(models: ActionModels, demos: Demonstrations) -> None:

@@ -9,6 +9,7 @@ process, ``workers`` local processes, or Ray actors on one machine or a cluster.
 from __future__ import annotations
 
 import collections
+import contextlib
 import multiprocessing
 import os
 import threading
@@ -29,6 +30,8 @@ JOBS_AHEAD_PER_WORKER = 2
 few enough that stopping a sweep never waits for a queue of thousands."""
 PARENT_CHECK_S = 0.5
 """How often a worker process checks that the process that started it is still there."""
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""What OpenBLAS, OpenMP and MKL builds read for their thread count when a process loads them."""
 
 
 def ordered_map(
@@ -73,10 +76,11 @@ def _process_map(function, jobs, initializer, initargs, workers) -> Iterator:
     queue = iter(jobs)
     finished = False
     try:
-        for job in queue:
-            pending.append(pool.submit(function, job))
-            if len(pending) >= JOBS_AHEAD_PER_WORKER * workers:
-                break
+        with _one_blas_thread_per_worker():  # the processes are spawned by these first submissions
+            for job in queue:
+                pending.append(pool.submit(function, job))
+                if len(pending) >= JOBS_AHEAD_PER_WORKER * workers:
+                    break
         while pending:
             result = pending.popleft().result()
             for job in queue:  # keep the window full: one new job for each one done
@@ -89,6 +93,20 @@ def _process_map(function, jobs, initializer, initargs, workers) -> Iterator:
             pool.shutdown(wait=True)
         else:  # stopped early: nothing queued runs, and the running jobs are not waited for
             _end_workers(pool)
+
+
+@contextlib.contextmanager
+def _one_blas_thread_per_worker() -> Iterator[None]:
+    """Worker processes spawned meanwhile use one BLAS thread each (unless the caller's environment says
+    otherwise): ``workers`` processes then share ``workers`` cores, where BLAS's default of a thread per
+    core in every process oversubscribes them (products several times slower, measured in recognition)."""
+    unset = [name for name in BLAS_THREAD_VARIABLES if name not in os.environ]
+    os.environ.update(dict.fromkeys(unset, "1"))
+    try:
+        yield
+    finally:
+        for name in unset:
+            os.environ.pop(name, None)
 
 
 def _end_workers(pool: ProcessPoolExecutor) -> None:
