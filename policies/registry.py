@@ -10,6 +10,7 @@ import numpy as np
 from hoap_actions.envs import ENV_IDS
 from hoap_actions.envs.controls import MAX_HAND_STEP
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.behaviour_cloning import BehaviourCloningPolicy
 from hoap_actions.policies.phmm_policy import PHMMPolicy
 from hoap_actions.policies.scripted_expert import ScriptedExpert
 
@@ -52,7 +53,8 @@ class StraightReach:
         return np.append(np.clip(step, -1.0, 1.0), -1.0).astype(np.float32)
 
 
-POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert, "phmm": PHMMPolicy, "straight": StraightReach}
+POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert, "phmm": PHMMPolicy, "straight": StraightReach,
+            "bc": BehaviourCloningPolicy}
 """Policies by name; each has ``control_mode`` (the env's) and ``env_ids`` (the envs it can act in)."""
 
 
