@@ -26,8 +26,10 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
 * When the block is seen (:class:`~hoap_actions.vision.objects.ObjectLocator`), an
   approach's redrawn end lies at the block, offset as the hand's training ends are from the objects'
   training starts, and a manipulation starts at the block: the image proposes where the arm is going.
-* Each particle's pose strays from the state's mean by an offset that drifts within the state's
-  learned spread (the PHMM's observation density).
+* Each particle's pose strays from the state's mean by a pose state that drifts within the state's
+  learned spread (the PHMM's observation density): an offset of every marker coordinate (``"offsets"``),
+  or a shift of the hand with the shoulder and elbow generated from it (``"hand"``;
+  :mod:`~hoap_actions.tracking.poses`).
 
 Observation, eq. (8): the posed body is projected into the camera and its contour scored on the edge
 image, ``exp(-mean_C (1 - G(c))^2 / (2 sigma^2))``, in log form (so no likelihood underflows); eq. (9)
@@ -46,19 +48,21 @@ estimates before the arm has shown where it goes).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.primitives.models.class_models import ClassModel
+from hoap_actions.tracking.poses import mean_poses
+from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
+from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
 
-__all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]
+__all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]  # mean_poses: from poses, where it moved
 
 # sigma of eq. (8), in units of 1 - G: how sharply contours are told apart (chosen with the silhouette term
 # on a validation recording, docs/experiments/tracking.md): sharper, the particles agree on a goal before
@@ -75,7 +79,6 @@ SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
 LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
-POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose offset from its state's mean
 # m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
 OBJECT_MOVING_M = 0.01
 # m, the same for a block at rest: the locator's jitter (median 0, 90 % below 3-4 mm on validation)
@@ -101,37 +104,6 @@ def _visible_mean(values: np.ndarray) -> np.ndarray:
     seen = np.isfinite(values)
     count = seen.sum(axis=1)
     return np.where(count > 0, np.where(seen, values, 0.0).sum(axis=1) / np.maximum(count, 1), 1.0)
-
-
-def mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers: int) -> np.ndarray:
-    """The markers ``(n, 3 * n_markers)`` a class's PHMM means at continuous states ``states`` (n,) and full
-    effects ``phi`` (n, 6): the means of states ``floor(s)`` and ``ceil(s)`` at phi, interpolated, as
-    :meth:`ParametricHMM.synthesize` moves between them."""
-    states, phi = np.asarray(states, dtype=float), np.asarray(phi, dtype=float)
-    features, chain = model.phmm.mean_bar_.shape[1], model.phmm.n_states
-    if states.ndim != 1 or phi.shape != (states.size, 6) or not 0 < 3 * n_markers <= features:
-        raise InvalidInputError(f"mean_poses takes states (n,), phi (n, 6) and 1-{features // 3} markers; "
-                                f"got {states.shape}, {phi.shape} and {n_markers}")
-    if states.size and not (states.min() >= 0 and states.max() <= chain - 1):
-        raise InvalidInputError(f"states must lie in [0, {chain - 1}], the class's chain")
-    return _mean_poses(model, states, phi, n_markers)
-
-
-def _mean_poses(model: ClassModel, states: np.ndarray, phi: np.ndarray, n_markers: int) -> np.ndarray:
-    """:func:`mean_poses` without its checks: the filter's particles always lie on their chain."""
-    phmm = model.phmm
-    width = 3 * n_markers
-    reduced = np.einsum("nk,kp->np", phi - model.centre, model.basis)
-    low = np.floor(states).astype(int)
-    high = np.minimum(low + 1, phmm.n_states - 1)
-    share = (states - low)[:, None]
-    bend = phmm.effect_features_.transform(reduced) if phmm.V_.shape[2] else None
-
-    def mean_at(s: np.ndarray) -> np.ndarray:
-        means = phmm.mean_bar_[s, :width] + np.einsum("ndp,np->nd", phmm.W_[s, :width], reduced)
-        return means if bend is None else means + np.einsum("ndm,nm->nd", phmm.V_[s, :width], bend)
-
-    return (1.0 - share) * mean_at(low) + share * mean_at(high)
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,7 +134,8 @@ class ActionTracker:
     Parameters
     ----------
     models
-        fitted :class:`ActionModels` (their class PHMMs, grammar and markers).
+        fitted :class:`ActionModels` (their class PHMMs, grammar and markers), or
+        :class:`~hoap_actions.tracking.tracking_models.TrackingModels` (which may carry a posture model).
     body
         the :class:`BodyModel` that turns markers into a contour.
     cameras
@@ -178,6 +151,11 @@ class ActionTracker:
         scales of the object's seen displacement for classes that leave it at
         rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
         the term off.
+    pose_proposal
+        how a particle's pose strays from its state's mean (:mod:`~hoap_actions.tracking.poses`):
+        ``"offsets"``, every marker coordinate on its own, or ``"hand"``, the hand shifted and the shoulder
+        and elbow generated from it (warns when the models carry no posture model: they come from the
+        state's covariance then).
     random_state
         seed of the filter's draws.
 
@@ -188,12 +166,12 @@ class ActionTracker:
         learned from the models' training effects; used when :meth:`step` is told where the block is.
     """
 
-    def __init__(self, models: ActionModels, body: BodyModel, cameras: Projector | Sequence[Projector],
+    def __init__(self, models: ActionModels | TrackingModels, body: BodyModel, cameras: Projector | Sequence[Projector],
                  n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA,
                  end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
-                 random_state: int | np.random.Generator | None = None) -> None:
-        check_is_fitted(models)
+                 pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None) -> None:
+        models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
             raise InvalidInputError(f"n_particles must be an int in 1..{MAX_PARTICLES}; got {n_particles!r}")
@@ -202,9 +180,14 @@ class ActionTracker:
         if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):
             raise InvalidInputError(f"object_still_m must be > 0 or None (off) and object_moving_m > 0; got "
                                     f"{object_still_m!r}, {object_moving_m!r}")
-        if tuple(body.marker_names) != tuple(models.marker_names_):
+        if tuple(body.marker_names) != tuple(models.marker_names):
             raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
-                                    f"{list(models.marker_names_)}")
+                                    f"{list(models.marker_names)}")
+        self.poses = _pose_proposal(pose_proposal, models)
+        if pose_proposal == "hand" and models.posture is None:
+            warnings.warn("these models carry no posture model: the shoulder and elbow of poses generated from the "
+                          "hand come from each PHMM state's covariance conditioned on the hand (with diagonal "
+                          "covariances, the state's mean)", UserWarning, stacklevel=2)
         self.models, self.body = models, body
         self.cameras = [cameras] if hasattr(cameras, "view_matrix") else list(cameras)
         self.n_particles = int(n_particles)
@@ -215,17 +198,13 @@ class ActionTracker:
         self.object_moving_m = float(object_moving_m)
         self._rng = np.random.default_rng(random_state)
         self._object: np.ndarray | None = None
-        self._ids = np.array(sorted(models.classes_))
-        self._manipulations = np.array([cid for cid, c in models.classes_.items() if c.kind == MANIPULATION])
-        self._n_markers = len(models.marker_names_)
+        self._ids = np.array(sorted(models.classes))
+        self._manipulations = np.array([cid for cid, c in models.classes.items() if c.kind == MANIPULATION])
+        self._n_markers = len(models.marker_names)
         self._grammar_rows = self._successor_table()
-        width = 3 * self._n_markers
-        self._position_sd = {cid: np.sqrt(model.phmm.covars_[:, np.arange(width), np.arange(width)]
-                                          if model.phmm.covariance_type == "full" else model.phmm.covars_[:, :width])
-                             for cid, model in models.classes_.items()}
         self.hand_from_object = self._hand_offset_from_object()
         self._end_box = {}
-        for cid, model in models.classes_.items():
+        for cid, model in models.classes.items():
             ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
             self._end_box[cid] = (ends.min(axis=0) - END_MARGIN_M, ends.max(axis=0) + END_MARGIN_M)
         self.reset()
@@ -233,7 +212,7 @@ class ActionTracker:
     # ----------------------------------------------------------------------------- set-up
     def _successor_table(self) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
         """Grammar as arrays: the start distribution over class ids, and each class's successors (EXIT = end)."""
-        grammar = self.models.grammar_
+        grammar = self.models.grammar
         symbols = [int(s) for s in grammar.symbols_]
         targets = np.array([*symbols, EXIT])
         table = {int(s): grammar.transmat_[k + 1, 1:] for k, s in enumerate(symbols)}
@@ -243,7 +222,7 @@ class ActionTracker:
         """Where an approach's end (the hand) lies from the object it reaches, learned from the training
         effects: the approaches' mean end minus the manipulations' mean start (weighted by their counts) in
         x and y; the approaches' mean end height in z."""
-        classes = self.models.classes_.values()
+        classes = self.models.classes.values()
         approach = [c.centre[3:] for c in classes if c.kind == APPROACH]
         starts = [(len(c.phmm.train_phi_), c.centre[:3]) for c in classes if c.kind == MANIPULATION]
         if not approach or not starts:
@@ -261,7 +240,7 @@ class ActionTracker:
         self.class_id = first.astype(int)
         self.state = np.zeros(self.n_particles)
         self.speed = np.exp(self._rng.normal(0.0, SPEED_SPREAD, self.n_particles))
-        self.offset = np.zeros((self.n_particles, self._n_markers * 3))
+        self.offset = np.zeros((self.n_particles, self.poses.dim))
         self.start = np.zeros((self.n_particles, 3))
         self.end = np.zeros((self.n_particles, 3))
         self.resting = np.zeros(self.n_particles, dtype=bool)
@@ -275,7 +254,7 @@ class ActionTracker:
 
     def _training_effects(self, class_id: int, n: int) -> np.ndarray:
         """``n`` full effects (6,) drawn from class ``class_id``'s training effects."""
-        model = self.models.classes_[class_id]
+        model = self.models.classes[class_id]
         reduced = model.phmm.train_phi_[self._rng.integers(0, len(model.phmm.train_phi_), size=n)]
         return model.centre + np.einsum("np,kp->nk", reduced, model.basis)
 
@@ -381,7 +360,7 @@ class ActionTracker:
             chosen = np.flatnonzero((self.class_id == cid) & ~self.resting)
             if not chosen.size:
                 continue
-            model = self.models.classes_[cid]
+            model = self.models.classes[cid]
             k = model.phmm.n_states
             rate = 1.0 - np.diagonal(model.phmm.transmat_)
             self.speed[chosen] *= np.exp(self._rng.normal(0.0, SPEED_JITTER, chosen.size))
@@ -390,9 +369,7 @@ class ActionTracker:
             leaps = self._rng.random(chosen.size) < LEAP_SHARE
             leap = leaps * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size) * (model.kind != APPROACH)
             self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
-            spread = self._position_sd[cid][s.astype(int)]
-            noise = self._rng.normal(0.0, 1.0, spread.shape) * spread
-            self.offset[chosen] = POSE_MEMORY * self.offset[chosen] + np.sqrt(1.0 - POSE_MEMORY**2) * noise
+            self.offset[chosen] = self.poses.drift(cid, s, self.offset[chosen], self._rng)
             cooling = END_DIFFUSION_FLOOR + (1.0 - END_DIFFUSION_FLOOR) * (1.0 - s / max(k - 1, 1))
             step = self._rng.normal(0.0, 1.0, (chosen.size, 3)) * (self.end_diffusion_m * cooling)[:, None]
             self.end[chosen] = np.clip(self.end[chosen] + step, *self._end_box[cid])
@@ -426,19 +403,19 @@ class ActionTracker:
         self.resting[particles[successors == EXIT]] = True
         if not particles.size:
             return
-        hands = self.markers(particles)[:, self.models.discovery_.hand_marker]
+        hands = self.markers(particles)[:, self.models.hand_marker]
         for cid in np.unique(successors[successors != EXIT]):
             rows = np.flatnonzero(successors == cid)
             chosen = particles[rows]
             effects = self._training_effects(int(cid), chosen.size)
-            new = self.models.classes_[int(cid)]
+            new = self.models.classes[int(cid)]
             if new.kind == MANIPULATION and self._object is not None:  # after an approach it starts at the seen block
                 start = np.tile([*self._object[:2], new.centre[2]], (chosen.size, 1))
                 chained = np.isin(self.class_id[chosen], self._manipulations)
                 start[chained] = self.end[chosen[chained]]  # after a manipulation, where that one ended
                 end = start + effects[:, 3:] - effects[:, :3]
             elif new.kind == MANIPULATION:  # the object moves by a learned displacement
-                previous_end_height = np.array([self.models.classes_[int(c)].centre[5] for c in self.class_id[chosen]])
+                previous_end_height = np.array([self.models.classes[int(c)].centre[5] for c in self.class_id[chosen]])
                 start = self.end[chosen].copy()
                 start[:, 2] += new.centre[2] - previous_end_height
                 end = start + effects[:, 3:] - effects[:, :3]
@@ -452,15 +429,14 @@ class ActionTracker:
     def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
         """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
         markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`, unchecked),
-        plus its offset."""
+        moved by its pose state (:attr:`poses`)."""
         particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
         out = np.empty((particles.size, self._n_markers, 3))
         for cid in np.unique(self.class_id[particles]):
             rows = np.flatnonzero(self.class_id[particles] == cid)
             chosen = particles[rows]
             phi = np.hstack([self.start[chosen], self.end[chosen]])
-            pose = (_mean_poses(self.models.classes_[cid], self.state[chosen], phi, self._n_markers)
-                    + self.offset[chosen])
+            pose = self.poses.pose(cid, self.state[chosen], phi, self.offset[chosen])
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 

@@ -1,0 +1,60 @@
+"""What the tracker needs of learned models, gathered in one value: the classes' PHMMs with their effect maps,
+the grammar that orders them, the markers, and optionally a posture model that poses the shoulder and elbow
+from the hand.
+
+:class:`~hoap_actions.primitives.models.action_models.ActionModels` carry all of it but the posture model
+(:meth:`TrackingModels.from_action_models`); the paper's tracking experiment builds one from a single approach
+PHMM trained on a grid of reaches (:mod:`~hoap_actions.tracking.grid_experiment`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from hoap_actions.demonstration.tasks import MARKER_NAMES
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.base import check_is_fitted
+from hoap_actions.primitives.discovery.grammar import ActionGrammar
+from hoap_actions.primitives.hmm.posture import PostureModel
+from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.class_models import ClassModel
+
+__all__ = ["TrackingModels"]
+
+
+@dataclass(frozen=True, eq=False)
+class TrackingModels:
+    """The classes ``{id: ClassModel}``, their fitted :class:`ActionGrammar` (its symbols are class ids), the
+    marker names, the index of the marker whose path is an approach's effect (``hand_marker``) and an optional
+    fitted :class:`PostureModel` (markers in the recordings' order: shoulder, elbow, then the hand)."""
+
+    classes: Mapping[int, ClassModel]
+    grammar: ActionGrammar
+    marker_names: tuple[str, ...]
+    hand_marker: int
+    posture: PostureModel | None = None
+
+    def __post_init__(self) -> None:
+        if not self.classes:
+            raise InvalidInputError("tracking needs at least one class model")
+        check_is_fitted(self.grammar)
+        unknown = sorted({int(s) for s in self.grammar.symbols_} - {int(c) for c in self.classes})
+        if unknown:
+            raise InvalidInputError(f"the grammar names classes {unknown} that have no model (models: "
+                                    f"{sorted(self.classes)})")
+        if not 0 <= self.hand_marker < len(self.marker_names):
+            raise InvalidInputError(f"hand_marker must index one of the {len(self.marker_names)} markers; got "
+                                    f"{self.hand_marker}")
+        if self.posture is not None:
+            check_is_fitted(self.posture)
+            if tuple(self.marker_names) != MARKER_NAMES:
+                raise InvalidInputError(f"a posture model poses the markers {list(MARKER_NAMES)}; these models have "
+                                        f"{list(self.marker_names)}")
+
+    @classmethod
+    def from_action_models(cls, models: ActionModels, posture: PostureModel | None = None) -> TrackingModels:
+        """The tracker's view of fitted action models, with ``posture`` if given."""
+        check_is_fitted(models)
+        return cls(dict(models.classes_), models.grammar_, tuple(models.marker_names_),
+                   int(models.discovery_.hand_marker), posture)
