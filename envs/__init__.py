@@ -13,8 +13,9 @@ import gymnasium
 _SPECS: dict[str, str] = {
     "hoap_actions/PegInsert-v0": "hoap_actions.envs.tasks.peg_insert:PegInsertEnv",
     "hoap_actions/Reach-v1": "hoap_actions.envs.tasks.reach:ReachEnv",
+    "hoap_actions/Imitate-v0": "hoap_actions.imitation.imitate_env:ImitateEnv",  # a string: no import edge upwards
 }
-_EPISODE_STEPS = {"hoap_actions/PegInsert-v0": 600, "hoap_actions/Reach-v1": 150}
+_EPISODE_STEPS = {"hoap_actions/PegInsert-v0": 600, "hoap_actions/Reach-v1": 150, "hoap_actions/Imitate-v0": 600}
 ENV_IDS: tuple[str, ...] = tuple(_SPECS)
 
 
