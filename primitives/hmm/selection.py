@@ -94,7 +94,7 @@ def select_n_states(X, lengths, phi, candidates: Sequence[int], n_folds: int = 3
 
 def select_mean_model(X, lengths, phi, candidates: Sequence[Mapping], n_folds: int = 5,
                       random_state: int | np.random.Generator | None = None, point_dim: int = 3,
-                      **model_kwargs) -> MeanModelSelection:
+                      estimator: type = ParametricHMM, **model_kwargs) -> MeanModelSelection:
     """Choose among ``candidates`` (keyword sets such as ``{"mean_model": "tps", "smoothing": 0.1}``) by
     cross-validated resynthesis error of held-out demonstrations.
 
@@ -103,7 +103,9 @@ def select_mean_model(X, lengths, phi, candidates: Sequence[Mapping], n_folds: i
     the job a mean model does. Each held-out demonstration is compared with the synthesis at its own
     effect by eq. (5) (:func:`~hoap_actions.primitives.trajectory_metrics.warped_rms_error`, ``point_dim``
     coordinates per point); a candidate's score is the RMS over all held-out demonstrations. A candidate a
-    fold cannot train scores ``inf``. ``model_kwargs`` (e.g. ``n_states``) go to every model.
+    fold cannot train scores ``inf``. ``model_kwargs`` (e.g. ``n_states``) go to every model. ``estimator``:
+    the class chosen for; any with ``_check_params()``, ``fit(X, lengths, phi)`` and ``synthesize(phi)`` (the
+    synthesis baselines of :mod:`hoap_actions.primitives.baselines`) is chosen by the same rule.
     """
     X, lengths = validate_sequences(X, lengths)
     phi = check_train_phi(phi, lengths.size)
@@ -117,7 +119,7 @@ def select_mean_model(X, lengths, phi, candidates: Sequence[Mapping], n_folds: i
         raise InvalidInputError(f"n_folds must be an int in [2, {n_groups}] (the number of distinct effects: "
                                 f"repetitions of one effect stay in one fold); got {n_folds!r}")
     for candidate in cands:  # bad keywords fail here, before any training
-        ParametricHMM(**{**model_kwargs, **candidate})._check_params()
+        estimator(**{**model_kwargs, **candidate})._check_params()
     rng = np.random.default_rng(random_state)
     folds = np.array_split(rng.permutation(n_groups), int(n_folds))
     seqs = _split(X, lengths)
@@ -127,7 +129,7 @@ def select_mean_model(X, lengths, phi, candidates: Sequence[Mapping], n_folds: i
         for held_groups in folds:
             held = np.flatnonzero(np.isin(groups, held_groups))
             train = np.setdiff1d(np.arange(lengths.size), held)
-            model = ParametricHMM(**{**model_kwargs, **candidate})
+            model = estimator(**{**model_kwargs, **candidate})
             try:
                 model.fit(np.concatenate([seqs[i] for i in train]), lengths[train], phi[train])
             except InvalidInputError as exc:
