@@ -365,15 +365,14 @@ class GraspAndInsert(ABC):
         return np.array([*grasp_xy(self.world.peg, self.plan.shift, PALM_GAP, self.hand_axes_now()), self.plan.z])
 
     def _after_move(self, peg: tuple[np.ndarray, bool] | None) -> None:
-        """Over the hole: line the peg up by measurement (when measured and asked for), then insert."""
+        """Over the hole: line the peg up by measurement (when measured and asked for), then insert;
+        a policy that cannot see the held peg lines up where the hand's measured pose puts it."""
         insert = self.insert_legs(self.tcp.copy(), self.move_target)
+        if peg is None and not insert:
+            if self._correct_alignment(self.move_bottom_target()[:2] - self._held_bottom()[:2]):
+                return
         if peg is not None and insert:
-            error = self.world.hole[:2] - peg[0][:2]
-            if np.linalg.norm(error) >= ALIGN_TOLERANCE and self.corrections < MAX_CORRECTIONS:
-                self.corrections += 1
-                target = self._target().copy()
-                target[:2] += error
-                self._enter(Phase.ALIGN, [straight_leg(target, tolerance=0.003)])
+            if self._correct_alignment(self.world.hole[:2] - peg[0][:2]):
                 return
             depth = scene_module.BOARD_SIZE[2] - INSERT_DEPTH
             end = np.array([*self._target()[:2], depth + self.tcp[2] - peg[0][2]])
@@ -384,7 +383,21 @@ class GraspAndInsert(ABC):
             self.grip = 0.0
             self._enter(Phase.RELEASE)
 
+    def _correct_alignment(self, error: np.ndarray) -> bool:
+        """Shift the hand by the peg bottom's lateral ``error`` (2,) (m) and say so, unless it is within
+        :data:`ALIGN_TOLERANCE` or the corrections are used up."""
+        if np.linalg.norm(error) < ALIGN_TOLERANCE or self.corrections >= MAX_CORRECTIONS:
+            return False
+        self.corrections += 1
+        target = self._target().copy()
+        target[:2] += error
+        self._enter(Phase.ALIGN, [straight_leg(target, tolerance=0.003)])
+        return True
+
+    def _held_bottom(self) -> np.ndarray:
+        """Where the held peg's bottom (3,) is now if it turned with the hand since the grasp."""
+        return self.tcp + self.hand_rotation_now() @ self.peg_in_hand
+
     def _check_slip(self, peg: tuple[np.ndarray, bool] | None) -> None:
-        if (peg is not None
-                and np.linalg.norm(self.tcp + self.hand_rotation_now() @ self.peg_in_hand - peg[0]) > SLIP_DISTANCE):
+        if peg is not None and np.linalg.norm(self._held_bottom() - peg[0]) > SLIP_DISTANCE:
             self.failure = "grasp slipped"
