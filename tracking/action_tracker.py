@@ -163,7 +163,8 @@ class ActionTracker:
     ----------
     hand_from_object
         (3,) m, where an approach ends relative to the block (x, y; z is the end's height),
-        learned from the models' training effects; used when :meth:`step` is told where the block is.
+        learned from the models' training effects unless the models give it (``TrackingModels.object_end``);
+        used when :meth:`step` is told where the block is.
     """
 
     def __init__(self, models: ActionModels | TrackingModels, body: BodyModel, cameras: Projector | Sequence[Projector],
@@ -202,7 +203,9 @@ class ActionTracker:
         self._manipulations = np.array([cid for cid, c in models.classes.items() if c.kind == MANIPULATION])
         self._n_markers = len(models.marker_names)
         self._grammar_rows = self._successor_table()
-        self.hand_from_object = self._hand_offset_from_object()
+        self.hand_from_object, self._object_end_spread_m = (
+            (np.asarray(models.object_end[0], float), float(models.object_end[1])) if models.object_end is not None
+            else (self._hand_offset_from_object(), OBJECT_END_SPREAD_M))
         self._end_box = {}
         for cid, model in models.classes.items():
             ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
@@ -390,7 +393,7 @@ class ActionTracker:
     def _end_at_object(self, n: int) -> np.ndarray:
         """``n`` approach ends drawn around the hand's learned place at the seen block."""
         centre = np.array([*(self._object[:2] + self.hand_from_object[:2]), self.hand_from_object[2]])
-        return centre + self._rng.normal(0.0, OBJECT_END_SPREAD_M, (n, 3))
+        return centre + self._rng.normal(0.0, self._object_end_spread_m, (n, 3))
 
     def _switch(self, particles: np.ndarray, successors: np.ndarray) -> None:
         """Particles that finished their class start the next one where the last ended (EXIT: rest there).

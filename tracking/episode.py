@@ -21,17 +21,21 @@ from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_S
 from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import UNKNOWN, effect_track
+from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
-from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame, mean_poses
+from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame
+from hoap_actions.tracking.poses import mean_poses
+from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
 from hoap_actions.vision.edges import edge_image
 from hoap_actions.vision.objects import ObjectLocator
 from hoap_actions.vision.silhouette import BackgroundSubtractor
 
-__all__ = ["SCORED_MARKERS", "TrackResult", "effect_figure", "pose_floor", "side_cameras", "track_episode",
-           "track_markers_episode", "tracking_video_frames"]
+__all__ = ["SCORED_MARKERS", "RenderedFrames", "TrackResult", "effect_figure", "pooled_rms", "pose_floor",
+           "render_frames", "side_cameras", "track_episode", "track_frames", "track_markers_episode",
+           "tracking_video_frames"]
 
 SCORED_MARKERS = ("shoulder", "elbow", "index_tip")  # the paper's shoulder, elbow and finger
 TABLE_TOP_Z = 0.0  # m, the demonstration table's top in the scene frame: what is below it the camera cannot see
@@ -59,9 +63,9 @@ class TrackResult:
     kinds: dict[int, str] = field(default_factory=dict)  # class id -> approach / manipulation / remove
 
     def summary(self) -> dict:
-        """RMS errors (m) of the scored markers and of all, frame rate, approach-end error and frames to
-        find it, per-frame agreement of the recognised class with discovery's (and of its kind: approach,
-        manipulation or remove), and both class sequences."""
+        """RMS errors (m) of the scored markers, of the three pooled (the paper's figure) and of all, frame
+        rate, approach-end error and frames to find it, per-frame agreement of the recognised class with
+        discovery's (and of its kind: approach, manipulation or remove), and both class sequences."""
         estimate = np.array([f.markers for f in self.frames])
         distance = np.linalg.norm(estimate - self.truth_markers, axis=2)  # (T, M)
         recognized = np.array([max(f.class_probabilities, key=f.class_probabilities.get) for f in self.frames])
@@ -77,6 +81,7 @@ class TrackResult:
             "rms_m": {name: float(np.sqrt(np.mean(distance[:, self.marker_names.index(name)] ** 2)))
                       for name in SCORED_MARKERS},
             "rms_m_all": float(np.sqrt(np.mean(distance**2))),
+            "rms_m_pooled": pooled_rms(distance, self.marker_names),
             "hz": len(self.frames) / self.track_s,
             "particles": self.particles,
             "cues": ["markers"] if self.views == 0 else ["edges", "silhouette"] if self.silhouette else ["edges"],
@@ -95,6 +100,13 @@ class TrackResult:
         }
 
 
+def pooled_rms(distance: np.ndarray, marker_names: tuple[str, ...]) -> float:
+    """The paper's figure: one RMS (m) over the frames of :data:`SCORED_MARKERS` (shoulder, elbow, finger)
+    pooled, from per-frame distances ``(T, M)`` of the markers ``marker_names``."""
+    scored = [marker_names.index(name) for name in SCORED_MARKERS]
+    return float(np.sqrt(np.mean(np.asarray(distance)[:, scored] ** 2)))
+
+
 def side_cameras(side: bool) -> tuple[Camera, ...]:
     """The views added to the demonstration camera: the side camera when ``side``, else none."""
     return (DEMONSTRATOR_SIDE_CAMERA,) if side else ()
@@ -104,66 +116,157 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                   seed: int = 0, keep_images: bool = False, camera: Camera = DEMONSTRATOR_CAMERA,
                   more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
                   silhouette: bool = True, object_cue: bool = True,
-                  progress: Callable[[int, int], None] | None = None) -> TrackResult:
+                  progress: Callable[[int, int], None] | None = None, pose_proposal: str = "offsets",
+                  posture: PostureModel | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
     puts unrelated objects on the table (:meth:`DemoScene.add_clutter`); ``image_noise`` adds Gaussian
     noise of that standard deviation (share of the full intensity) to every image, drawn from ``seed``.
     ``silhouette`` adds the foreground cue: each image against a picture of the empty table from the same
-    camera (taken once, before the episode, with its own noise); False scores edges alone (eq. 8)."""
-    if not (np.isfinite(image_noise) and 0.0 <= image_noise <= 1.0):
-        raise InvalidInputError(f"image_noise must be a standard deviation in [0, 1] (share of full intensity); "
-                                f"got {image_noise!r}")
-    if not demos.joint_names:
-        raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be rendered; "
-                                "record it again with this version: hoap-actions record")
+    camera (taken once, before the episode, with its own noise); False scores edges alone (eq. 8).
+    ``pose_proposal`` and ``posture``: how particles pose the arm (:class:`ActionTracker`)."""
     ep = _bridged_episode(models, demos, episode)
-    scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
-    noise = np.random.default_rng([seed, episode])
-    try:
-        if clutter:
-            scene.add_clutter()
-        body = BodyModel(models.marker_names_, torso_base=scene.torso_base(), hidden_below_z=TABLE_TOP_Z)
-        views = (camera, *more_cameras)
-        tracker = ActionTracker(models, body, views, n_particles=particles, random_state=seed)
-        locate = ObjectLocator(camera, scene.config.object_size / 2.0) if object_cue else lambda image: None
-
-        def noisy(images: list[np.ndarray]) -> list[np.ndarray]:
-            if image_noise == 0:
-                return images
-            return [np.clip(image + noise.normal(0.0, 255.0 * image_noise, image.shape), 0, 255).astype(np.uint8)
-                    for image in images]
-
-        subtractors = [BackgroundSubtractor(empty) for empty in noisy([scene.render_background(view).rgb
-                                                                       for view in views])] if silhouette else None
-        frames, kept, pictures, spent = [], [], [], 0.0
+    views = (camera, *more_cameras)
+    frames, kept, pictures = [], [], []
+    with _Renderer(demos, episode, views, clutter, image_noise, seed) as renderer:
+        body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
+        tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
+                                pose_proposal=pose_proposal, random_state=seed)
+        observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
+                            ObjectLocator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
-            scene.pose(demos.joint_names, ep.Q[t], ep.O[t])
-            images = noisy([scene.render(view).rgb for view in views])
-            started = time.perf_counter()
-            edges = [edge_image(image) for image in images]
-            masks = None if subtractors is None else [subtract(image) for subtract, image in zip(subtractors, images)]
-            frames.append(tracker.step(edges, masks, locate(images[0])))
-            spent += time.perf_counter() - started
+            images = renderer.frame(ep, t)
+            frames.append(observe(images))
             if keep_images:
-                kept.append(edges[0])
+                kept.append(observe.edges[0])
                 pictures.append(images[0])
             if progress is not None:
                 progress(t + 1, ep.T)
-    finally:
-        scene.close()
     truth, approaches = _classes_and_approach_ends(models, ep)
-    return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
+    return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, observe.spent,
                        body.torso_base, silhouette, kept, pictures, len(views), _kinds(models))
 
 
+@dataclass
+class RenderedFrames:
+    """Camera images of frames of an episode, rendered once so that several trackers see the same ones:
+    ``images[t][k]`` (H, W, 3) uint8 of view ``views[k]``, ``backgrounds[k]`` the empty table from it,
+    the body model's ``torso_base`` (3,) and the block's half size (m)."""
+
+    images: list[list[np.ndarray]]
+    backgrounds: list[np.ndarray]
+    views: tuple[Camera, ...]
+    torso_base: np.ndarray
+    object_half_size_m: float
+
+
+def render_frames(demos: Demonstrations, episode: int, frames: range, camera: Camera = DEMONSTRATOR_CAMERA,
+                  more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
+                  seed: int = 0) -> RenderedFrames:
+    """The camera images of ``frames`` of episode ``episode`` (as recorded: joint angles and block pose), with
+    the empty table first; clutter and noise as for :func:`track_episode` (the same images when it scores
+    the silhouette)."""
+    if not 0 <= episode < len(demos):
+        raise InvalidInputError(f"episode must be in [0, {len(demos) - 1}]; got {episode}")
+    ep = demos[episode]
+    if not (len(frames) and 0 <= min(frames) and max(frames) < ep.T):
+        raise InvalidInputError(f"frames must be a non-empty range within the episode's {ep.T} frames; got {frames}")
+    views = (camera, *more_cameras)
+    with _Renderer(demos, episode, views, clutter, image_noise, seed) as renderer:
+        backgrounds = renderer.backgrounds()
+        images = [renderer.frame(ep, t) for t in frames]
+    return RenderedFrames(images, backgrounds, views, renderer.torso_base, renderer.object_half_size_m)
+
+
+def track_frames(tracker: ActionTracker, rendered: RenderedFrames, silhouette: bool = True, object_cue: bool = True,
+                 keep_edges: bool = False) -> tuple[list[TrackedFrame], float, list[np.ndarray]]:
+    """Track already rendered frames: each frame's belief, the wall time of edge images, masks, block and
+    filter (s), and (``keep_edges``) the first view's edge images."""
+    observe = _Observer(tracker, rendered.backgrounds if silhouette else None,
+                        ObjectLocator(rendered.views[0], rendered.object_half_size_m) if object_cue else None)
+    frames, edges = [], []
+    for images in rendered.images:
+        frames.append(observe(images))
+        if keep_edges:
+            edges.append(observe.edges[0])
+    return frames, observe.spent, edges
+
+
+class _Renderer:
+    """The demonstration scene posed as an episode records it, each view's image with its noise (a context
+    manager: the scene's physics client is closed on exit)."""
+
+    def __init__(self, demos: Demonstrations, episode: int, views: tuple[Camera, ...], clutter: bool,
+                 image_noise: float, seed: int) -> None:
+        if not (np.isfinite(image_noise) and 0.0 <= image_noise <= 1.0):
+            raise InvalidInputError(f"image_noise must be a standard deviation in [0, 1] (share of full intensity); "
+                                    f"got {image_noise!r}")
+        if not demos.joint_names:
+            raise InvalidInputError("this recording has no joint angles (Q), so its camera images cannot be "
+                                    "rendered; record it again with this version: hoap-actions record")
+        self.joint_names, self.views, self.image_noise = demos.joint_names, views, image_noise
+        self.noise = np.random.default_rng([seed, episode])
+        self.scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
+        try:
+            if clutter:
+                self.scene.add_clutter()
+            self.torso_base = self.scene.torso_base()
+        except BaseException:
+            self.scene.close()
+            raise
+        self.object_half_size_m = self.scene.config.object_size / 2.0
+
+    def __enter__(self) -> _Renderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.scene.close()
+
+    def _noisy(self, images: list[np.ndarray]) -> list[np.ndarray]:
+        if self.image_noise == 0:
+            return images
+        return [np.clip(image + self.noise.normal(0.0, 255.0 * self.image_noise, image.shape), 0, 255).astype(np.uint8)
+                for image in images]
+
+    def backgrounds(self) -> list[np.ndarray]:
+        """Each view's picture of the empty table (drawn from the noise before any frame)."""
+        return self._noisy([self.scene.render_background(view).rgb for view in self.views])
+
+    def frame(self, ep, t: int) -> list[np.ndarray]:
+        self.scene.pose(self.joint_names, ep.Q[t], ep.O[t])
+        return self._noisy([self.scene.render(view).rgb for view in self.views])
+
+
+class _Observer:
+    """One frame's camera images into one tracker step (edge images, foreground masks against the empty table,
+    the block), timed; ``edges`` keeps the last frame's edge images."""
+
+    def __init__(self, tracker: ActionTracker, backgrounds: list[np.ndarray] | None,
+                 locate: ObjectLocator | None) -> None:
+        self.tracker, self.locate = tracker, locate
+        self.subtractors = None if backgrounds is None else [BackgroundSubtractor(empty) for empty in backgrounds]
+        self.spent = 0.0
+        self.edges: list[np.ndarray] = []
+
+    def __call__(self, images: list[np.ndarray]) -> TrackedFrame:
+        started = time.perf_counter()
+        self.edges = [edge_image(image) for image in images]
+        masks = None if self.subtractors is None else [subtract(image) for subtract, image
+                                                       in zip(self.subtractors, images)]
+        frame = self.tracker.step(self.edges, masks, None if self.locate is None else self.locate(images[0]))
+        self.spent += time.perf_counter() - started
+        return frame
+
+
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
-                          seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True) -> TrackResult:
+                          seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True,
+                          pose_proposal: str = "offsets", posture: PostureModel | None = None) -> TrackResult:
     """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
     (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
     vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
-    gives the tracker the recorded object's centre, as the camera's block locator does."""
+    gives the tracker the recorded object's centre, as the camera's block locator does; ``pose_proposal`` and
+    ``posture`` as for :func:`track_episode`."""
     ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     try:
@@ -171,7 +274,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     finally:
         scene.close()
     body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
-    tracker = ActionTracker(models, body, DEMONSTRATOR_CAMERA, n_particles=particles, random_state=seed)
+    tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, DEMONSTRATOR_CAMERA,
+                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
     frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]

@@ -12,6 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numpy as np
+
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.base import check_is_fitted
@@ -27,13 +29,18 @@ __all__ = ["TrackingModels"]
 class TrackingModels:
     """The classes ``{id: ClassModel}``, their fitted :class:`ActionGrammar` (its symbols are class ids), the
     marker names, the index of the marker whose path is an approach's effect (``hand_marker``) and an optional
-    fitted :class:`PostureModel` (markers in the recordings' order: shoulder, elbow, then the hand)."""
+    fitted :class:`PostureModel` (markers in the recordings' order: shoulder, elbow, then the hand).
+
+    ``object_end``: where an approach ends relative to the block it reaches, when the models know it: an offset
+    (3,) m (x, y from the block; z the end's height) and a spread (m). None: the tracker learns the offset from
+    the classes' training effects (:attr:`ActionTracker.hand_from_object`) and uses its default spread."""
 
     classes: Mapping[int, ClassModel]
     grammar: ActionGrammar
     marker_names: tuple[str, ...]
     hand_marker: int
     posture: PostureModel | None = None
+    object_end: tuple[np.ndarray, float] | None = None
 
     def __post_init__(self) -> None:
         if not self.classes:
@@ -46,6 +53,11 @@ class TrackingModels:
         if not 0 <= self.hand_marker < len(self.marker_names):
             raise InvalidInputError(f"hand_marker must index one of the {len(self.marker_names)} markers; got "
                                     f"{self.hand_marker}")
+        if self.object_end is not None:
+            offset, spread = self.object_end
+            if np.shape(offset) != (3,) or not np.all(np.isfinite(offset)) or not (np.isfinite(spread) and spread > 0):
+                raise InvalidInputError(f"object_end must be an offset (3,) m and a spread > 0 m; got "
+                                        f"{self.object_end!r}")
         if self.posture is not None:
             check_is_fitted(self.posture)
             if tuple(self.marker_names) != MARKER_NAMES:
