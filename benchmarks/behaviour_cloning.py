@@ -166,6 +166,9 @@ def main() -> None:
     parser.add_argument("--learning-rate", type=float, default=1e-3)
     parser.add_argument("--weight-decay", type=float, default=0.0)
     parser.add_argument("--no-normalise", dest="normalise", action="store_false")
+    parser.add_argument("--chunk", type=int, default=1, help="actions predicted per observation (temporal ensembling)")
+    parser.add_argument("--patience", type=int, default=None,
+                        help="a cloned policy gives up after this many steps of a still observation (default: never)")
     parser.add_argument("--random-state", type=int, default=0)
     parser.add_argument("--figure", type=Path, default=None,
                         help=f"figure to write (default: {FIGURE} for the held-out layouts, none otherwise)")
@@ -191,19 +194,19 @@ def main() -> None:
 
     params = {"hidden": tuple(args.hidden), "epochs": args.epochs, "batch_size": args.batch_size,
               "learning_rate": args.learning_rate, "weight_decay": args.weight_decay, "normalise": args.normalise,
-              "random_state": args.random_state, "threads": args.threads}
+              "chunk": args.chunk, "random_state": args.random_state, "threads": args.threads}
     models = args.data / "behaviour_cloning"
     training, policies = [], {}
     for n in sorted(args.sizes):
         X, Y, lengths = minari_transitions([shard_id(s) for s in shard_seeds[: n // SHARD]])
         fit_start = time.perf_counter()
-        model = BehaviourCloning(**params).fit(X, Y)
+        model = BehaviourCloning(**params).fit(X, Y, lengths)
         fit_s = time.perf_counter() - fit_start
         path = models / f"bc_{n}.pt"
         model.save(path, overwrite=True)
         training.append({"episodes": n, "seeds": [TRAINING_SEED, TRAINING_SEED + n], "transitions": len(X),
                          "fit_s": fit_s, "final_loss": model.loss_curve_[-1], "loss_curve": model.loss_curve_})
-        policies[f"bc_{n}"] = ("bc", {"model": str(path)})
+        policies[f"bc_{n}"] = ("bc", {"model": str(path), "patience": args.patience})
         print(f"bc_{n}: {len(X)} pairs from {len(lengths)} episodes, fitted in {fit_s:.0f} s, training loss "
               f"{model.loss_curve_[0]:.4f} -> {model.loss_curve_[-1]:.4f}")
     policies.update({name: (name, {}) for name in args.baselines})
@@ -212,6 +215,7 @@ def main() -> None:
     results = compare_policies(ENV_ID, policies, range(*args.seeds), workers=args.workers, robot=ROBOT)
     evaluated = time.perf_counter() - eval_start
     document = {"seeds": list(args.seeds), "robot": ROBOT, "workers": args.workers, "params": params,
+                "patience": args.patience,
                 "collect_s": collected, "shard_collect_s": shard_times, "evaluate_s": evaluated,
                 "wall_s": time.perf_counter() - start, "training": training, "code": code_version(),
                 "environment": numeric_environment(None, torch=_version("torch"), minari=_version("minari"))}

@@ -17,6 +17,7 @@ PyTorch is an optional dependency, imported only when a network is built or read
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import io
 import json
@@ -44,6 +45,9 @@ STD_FLOOR = 1e-3
 """Smallest spread an input is divided by in standardisation: inputs that barely vary in the
 demonstrations (the welded robot's leg joints, its base pose) are centred, not blown up."""
 MAX_FILE_BYTES = 256 * 2**20
+STALL_CHANGE = 1e-4
+"""Largest per-step change (m, rad, rad/s) of every number of the observation for which the policy
+counts the robot as standing still (stuck against a limit it measured 0.3-5e-5; moving, 1e-3 and more)."""
 
 
 def _torch():
@@ -133,6 +137,10 @@ class BehaviourCloning(Estimator):
     normalise:
         Standardise each input with the training mean and spread (at least :data:`STD_FLOOR`);
         False: inputs as they are.
+    chunk:
+        Actions predicted per observation: this step's and the next ``chunk - 1`` of the same
+        episode (its last action repeated past its end). :class:`BehaviourCloningPolicy` acts with
+        the mean of the predictions made for the current step (temporal ensembling, as ACT does).
     random_state:
         Seed (int) of the initial weights and the order of the mini-batches: the same seed gives the
         same weights bit for bit on a CPU with the same ``threads``.
@@ -142,7 +150,7 @@ class BehaviourCloning(Estimator):
     Attributes (after ``fit`` or ``load``)
     --------------------------------------
     network_:
-        The fitted ``torch.nn.Sequential``, on standardised inputs.
+        The fitted ``torch.nn.Sequential``, on standardised inputs; ``chunk`` actions per input.
     input_mean_, input_scale_:
         ``(D,)`` float32: what inputs are standardised with (0 and 1 when ``normalise`` is False).
     loss_curve_:
@@ -150,8 +158,8 @@ class BehaviourCloning(Estimator):
 
     Saved (:meth:`save`) as one file written by ``torch.save``: ``{"header": JSON text, "state_dict":
     tensors}``; the header holds ``kind`` "BehaviourCloning", ``format_version``
-    :data:`FORMAT_VERSION`, ``params`` (as :meth:`get_params`), ``n_inputs``, ``n_outputs`` and
-    ``loss_curve``; the tensors are the network's and ``input_mean`` / ``input_scale``. It is read
+    :data:`FORMAT_VERSION`, ``params`` (as :meth:`get_params`), ``n_inputs``, ``n_outputs`` (the
+    action's length) and ``loss_curve``; the tensors are the network's and ``input_mean`` / ``input_scale``. It is read
     with ``weights_only=True`` (no code runs) and checked against the header before use.
     """
 
@@ -161,7 +169,7 @@ class BehaviourCloning(Estimator):
     _readable_versions = (FORMAT_VERSION,)
 
     def __init__(self, hidden: Sequence[int] = (256, 256), epochs: int = 30, batch_size: int = 256,
-                 learning_rate: float = 1e-3, weight_decay: float = 0.0, normalise: bool = True,
+                 learning_rate: float = 1e-3, weight_decay: float = 0.0, normalise: bool = True, chunk: int = 1,
                  random_state: int = 0, threads: int = 1) -> None:
         self.hidden = hidden
         self.epochs = epochs
@@ -169,6 +177,7 @@ class BehaviourCloning(Estimator):
         self.learning_rate = learning_rate
         self.weight_decay = weight_decay
         self.normalise = normalise
+        self.chunk = chunk
         self.random_state = random_state
         self.threads = threads
 
@@ -179,7 +188,7 @@ class BehaviourCloning(Estimator):
         if isinstance(self.hidden, (str, bytes)) or not isinstance(self.hidden, Sequence) or not all(
                 positive_int(h) for h in self.hidden):
             raise InvalidInputError(f"hidden must be a sequence of positive ints (layer widths); got {self.hidden!r}")
-        for name in ("epochs", "batch_size", "threads"):
+        for name in ("epochs", "batch_size", "chunk", "threads"):
             if not positive_int(getattr(self, name)):
                 raise InvalidInputError(f"{name} must be a positive int; got {getattr(self, name)!r}")
         for name, value, accepted in (("learning_rate", self.learning_rate, "> 0"),
@@ -195,15 +204,17 @@ class BehaviourCloning(Estimator):
 
     # -- fit and predict
 
-    def fit(self, observations: np.ndarray, actions: np.ndarray) -> BehaviourCloning:
-        """Fit the network to ``actions`` ``(N, A)`` taken at ``observations`` ``(N, D)`` (e.g. from
-        :func:`minari_transitions`); returns ``self``."""
+    def fit(self, observations: np.ndarray, actions: np.ndarray, lengths: Sequence[int] | None = None
+            ) -> BehaviourCloning:
+        """Fit the network to ``actions`` ``(N, A)`` taken at ``observations`` ``(N, D)`` in episodes of
+        ``lengths`` steps (None: one episode), e.g. from :func:`minari_transitions`; returns ``self``."""
         self._check_params()
         X = _finite_2d(observations, "observations")
         Y = _finite_2d(actions, "actions")
         if len(X) != len(Y):
             raise InvalidInputError(f"observations has {len(X)} rows and actions {len(Y)}; give one action per "
                                     "observation")
+        Y = _chunks(Y, _episode_ends(lengths, len(Y)), self.chunk)
         torch = _torch()
         if self.normalise:
             mean, scale = X.mean(axis=0), np.maximum(X.std(axis=0), STD_FLOOR)
@@ -235,7 +246,12 @@ class BehaviourCloning(Estimator):
         return self
 
     def predict(self, observations: np.ndarray) -> np.ndarray:
-        """Actions ``(N, A)`` for observations ``(N, D)`` (float32, as the network computes them)."""
+        """Actions ``(N, A)`` for observations ``(N, D)`` (float32, as the network computes them): the
+        first of each chunk (:meth:`predict_chunks`)."""
+        return self.predict_chunks(observations)[:, 0]
+
+    def predict_chunks(self, observations: np.ndarray) -> np.ndarray:
+        """Actions ``(N, chunk, A)``: for each observation, its step's and the next ``chunk - 1``."""
         check_is_fitted(self)
         X = _finite_2d(observations, "observations")
         if X.shape[1] != len(self.input_mean_):
@@ -243,7 +259,7 @@ class BehaviourCloning(Estimator):
         torch = _torch()
         inputs = torch.from_numpy(((X - self.input_mean_) / self.input_scale_).astype(np.float32))
         with torch.inference_mode():
-            return self.network_(inputs).numpy()
+            return self.network_(inputs).numpy().reshape(len(X), self.chunk, -1)
 
     @property
     def n_inputs_(self) -> int:
@@ -255,7 +271,7 @@ class BehaviourCloning(Estimator):
     def n_outputs_(self) -> int:
         """Length of the action it gives."""
         check_is_fitted(self)
-        return int(self.network_[-1].out_features)
+        return int(self.network_[-1].out_features) // self.chunk
 
     # -- files
 
@@ -299,7 +315,7 @@ class BehaviourCloning(Estimator):
             loss_curve = [float(v) for v in header["loss_curve"]]
         except (KeyError, TypeError, ValueError) as exc:
             raise DataFileError(f"{path}: its header is not a {cls._file_kind} header ({exc})") from None
-        network = _network(torch, n_inputs, model.hidden, n_outputs)
+        network = _network(torch, n_inputs, model.hidden, n_outputs * model.chunk)
         expected = {"input_mean": (n_inputs,), "input_scale": (n_inputs,),
                     **{f"network.{k}": tuple(v.shape) for k, v in network.state_dict().items()}}
         found = {k: tuple(v.shape) if isinstance(v, torch.Tensor) else None for k, v in tensors.items()}
@@ -317,6 +333,22 @@ class BehaviourCloning(Estimator):
         model.input_scale_ = tensors["input_scale"].numpy().copy()
         model.loss_curve_ = loss_curve
         return model
+
+
+def _episode_ends(lengths: Sequence[int] | None, n: int) -> np.ndarray:
+    """For each of ``n`` rows, the index one past the last row of its episode."""
+    if lengths is None:
+        return np.full(n, n)
+    sizes = np.asarray(lengths)
+    if sizes.ndim != 1 or not np.issubdtype(sizes.dtype, np.integer) or np.any(sizes < 1) or sizes.sum() != n:
+        raise InvalidInputError(f"lengths must be positive ints summing to the {n} rows; got {lengths!r}")
+    return np.repeat(np.cumsum(sizes), sizes)
+
+
+def _chunks(actions: np.ndarray, ends: np.ndarray, chunk: int) -> np.ndarray:
+    """``(N, chunk * A)``: each row's action and the next ``chunk - 1`` of its episode, the last repeated."""
+    rows = np.minimum(np.arange(len(actions))[:, None] + np.arange(chunk), ends[:, None] - 1)
+    return actions[rows].reshape(len(actions), -1)
 
 
 def _finite_2d(values: np.ndarray, name: str) -> np.ndarray:
@@ -337,7 +369,13 @@ class BehaviourCloningPolicy:
         an env whose observations and actions have the sizes the model was fitted on, made with
         ``control_mode="ee_delta"`` (the scripted expert's, whose episodes it is fitted on).
     model
-        a fitted :class:`BehaviourCloning` or the path of a saved one.
+        a fitted :class:`BehaviourCloning` or the path of a saved one. With ``chunk`` > 1, the action
+        is the mean of what the last ``chunk`` predictions said for this step.
+    patience
+        give up (``failure`` "stalled") once the observation has stayed still, no number of it changing
+        by more than :data:`STALL_CHANGE` per step, for this many steps in a row: the network then
+        sees the same input and gives the same action, and the robot stays where it is (an episode
+        would run out its time). None: never give up.
     threads
         PyTorch threads of this process (set here, process-wide: one per worker process keeps the
         processes of a sweep from competing for cores).
@@ -347,7 +385,8 @@ class BehaviourCloningPolicy:
     control_mode = "ee_delta"
     env_ids = ENV_IDS
 
-    def __init__(self, env: gymnasium.Env, model: BehaviourCloning | str | os.PathLike, threads: int = 1) -> None:
+    def __init__(self, env: gymnasium.Env, model: BehaviourCloning | str | os.PathLike, patience: int | None = None,
+                 threads: int = 1) -> None:
         if not isinstance(model, BehaviourCloning):
             model = BehaviourCloning.load(model)
         check_is_fitted(model)
@@ -356,13 +395,27 @@ class BehaviourCloningPolicy:
         if size != model.n_inputs_ or env.action_space.shape != (model.n_outputs_,):
             raise InvalidInputError(f"the model maps {model.n_inputs_} inputs to {model.n_outputs_} actions; this env "
                                     f"observes {size} and takes actions of shape {env.action_space.shape}")
+        if patience is not None and (isinstance(patience, bool) or not isinstance(patience, int) or patience < 1):
+            raise InvalidInputError(f"patience must be None or a positive int (steps); got {patience!r}")
         _torch().set_num_threads(threads)
         self.model = model
+        self.patience = patience
         self.low, self.high = env.action_space.low, env.action_space.high
+        self._made: collections.deque[np.ndarray] = collections.deque(maxlen=model.chunk)
 
     def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        """Nothing to reset: each action depends on the current observation alone."""
+        """A new episode: the stall count and the chunks predicted so far start again."""
+        self.failure = None
+        self._last = state_vector(obs)
+        self._still = 0
+        self._made.clear()
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        action = self.model.predict(state_vector(obs)[None])[0]
+        state = state_vector(obs)
+        self._still = self._still + 1 if np.max(np.abs(state - self._last)) < STALL_CHANGE else 0
+        self._last = state
+        if self.patience is not None and self._still >= self.patience:
+            self.failure = "stalled"
+        self._made.appendleft(self.model.predict_chunks(state[None])[0])
+        action = np.mean([chunk[age] for age, chunk in enumerate(self._made)], axis=0)
         return np.clip(action, self.low, self.high).astype(np.float32)

@@ -14,6 +14,8 @@ from hoap_actions.errors import DataExistsError, DataFileError, InvalidInputErro
 from hoap_actions.policies.behaviour_cloning import (
     BehaviourCloning,
     BehaviourCloningPolicy,
+    _chunks,
+    _episode_ends,
     minari_transitions,
     state_vector,
 )
@@ -173,3 +175,65 @@ def test_minari_episodes_become_observation_action_pairs(tmp_path, monkeypatch):
     assert len(minari_transitions([dataset], episodes=1)[0]) == lengths[0]
     with pytest.raises(InvalidInputError, match="hold 2"):
         minari_transitions([dataset], episodes=3)
+
+
+def _constant(action: list[float], n_inputs: int, chunk: int = 1) -> BehaviourCloning:
+    """A fitted model whose output is exactly ``action`` (``chunk`` of them; last layer's weights zeroed)."""
+    model = BehaviourCloning(hidden=(4,), epochs=1, chunk=chunk).fit(np.eye(n_inputs)[:2], np.zeros((2, 4)))
+    with torch.no_grad():
+        model.network_[-1].weight.zero_()
+        model.network_[-1].bias.copy_(torch.tensor(action))
+    return model
+
+
+def test_a_policy_whose_robot_stands_still_gives_up():
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta", robot="fixed_legs")
+    try:
+        n = len(state_vector(env.reset(seed=1)[0]))
+        ended = {}
+        for name, action in (("still", [0.0, 0.0, 0.0, 0.0]), ("moving", [0.0, 0.0, 1.0, 0.0])):
+            policy = BehaviourCloningPolicy(env, _constant(action, n), patience=10)
+            obs, info = env.reset(seed=1)
+            policy.reset(obs, info)
+            steps = 0
+            while not policy.failure and steps < 80:
+                obs, *_ = env.step(policy(obs))
+                steps += 1
+            ended[name] = (policy.failure, steps)
+        assert ended["still"][0] == "stalled" and ended["still"][1] < 60  # the arm settles in ~35 steps
+        assert ended["moving"][0] == "stalled" and ended["moving"][1] > 20  # up 13 steps to the box's top, then still
+        with pytest.raises(InvalidInputError, match="patience"):
+            BehaviourCloningPolicy(env, _constant([0.0] * 4, n), patience=0)
+    finally:
+        env.close()
+
+
+def test_chunks_hold_the_next_actions_of_the_same_episode():
+    actions = np.array([[0.0], [1.0], [2.0], [10.0], [11.0]])
+    chunks = _chunks(actions, _episode_ends([3, 2], 5), 3)
+    np.testing.assert_array_equal(chunks, [[0, 1, 2], [1, 2, 2], [2, 2, 2], [10, 11, 11], [11, 11, 11]])
+    np.testing.assert_array_equal(_chunks(actions, _episode_ends(None, 5), 2)[2:], [[2, 10], [10, 11], [11, 11]])
+    with pytest.raises(InvalidInputError, match="lengths"):
+        BehaviourCloning(chunk=2).fit(np.zeros((5, 2)), actions, lengths=[3, 3])
+
+
+def test_a_chunked_model_round_trips_and_its_policy_averages_the_predictions_for_each_step(linear_data, tmp_path):
+    X, Y = linear_data
+    model = BehaviourCloning(**SMALL, chunk=3).fit(X, Y, lengths=[300, 300])
+    assert model.n_outputs_ == 3 and model.predict_chunks(X[:5]).shape == (5, 3, 3)
+    np.testing.assert_array_equal(model.predict(X[:5]), model.predict_chunks(X[:5])[:, 0])
+    model.save(tmp_path / "chunked.pt")
+    loaded = BehaviourCloning.load(tmp_path / "chunked.pt")
+    np.testing.assert_array_equal(loaded.predict_chunks(X), model.predict_chunks(X))
+    env = gymnasium.make("hoap_actions/Reach-v1", control_mode="ee_delta", robot="fixed_legs")
+    try:
+        obs, info = env.reset(seed=1)
+        first, second = [0.2, 0.0, 0.0, 0.0], [0.6, 0.0, -0.4, 0.0]
+        policy = BehaviourCloningPolicy(env, _constant(first + second, len(state_vector(obs)), chunk=2))
+        policy.reset(obs, info)
+        np.testing.assert_allclose(policy(obs), first)  # nothing predicted for this step before
+        np.testing.assert_allclose(policy(obs), [0.4, 0.0, -0.2, 0.0], atol=1e-7)  # mean of first and second
+        policy.reset(obs, info)
+        np.testing.assert_allclose(policy(obs), first)
+    finally:
+        env.close()
