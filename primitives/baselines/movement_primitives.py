@@ -207,7 +207,7 @@ class DMPSynthesis(SynthesisBaseline):
     def neighbour_weights(self, phi: np.ndarray) -> np.ndarray:
         """``(L,)``: how much each training location contributes at ``phi`` (inverse distance in the unit
         box of the training effects over the ``n_neighbours`` nearest, summing to 1; all on a location
-        within 1e-9 of phi)."""
+        within 1e-9 of phi; of equidistant locations, those first in the training data)."""
         _, span = unit_range(self.train_phi_)
         distance = np.linalg.norm((self.locations_ - phi) / span, axis=1)
         nearest = np.argsort(distance, kind="stable")[:int(self.n_neighbours)]
