@@ -250,6 +250,7 @@ def _recognize(args: argparse.Namespace) -> int:
 def _track(args: argparse.Namespace) -> int:
     from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.primitives.hmm.posture import PostureModel
     from hoap_actions.primitives.models.action_models import ActionModels
     from hoap_actions.tracking import (
         effect_figure,
@@ -263,21 +264,32 @@ def _track(args: argparse.Namespace) -> int:
     if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise):
         raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
                                 "--edges-only and --noise")
+    if args.grid_model and (args.models or args.posture or args.from_markers or args.side_camera or args.clutter
+                            or args.noise):
+        raise InvalidInputError("--grid-model trains its own approach model on the recording's 3 x 3 grid and tracks "
+                                "its one camera; leave out --models, --posture, --from-markers, --side-camera, "
+                                "--clutter and --noise")
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
                    for name, path in (("report", args.json), ("video", args.video), ("figure", args.figure)) if path}
-        models = ActionModels.load(args.models) if args.models else load_default_models()
         demos = load_demonstrations(args.demos)
+        if args.grid_model:
+            return _track_grid_reach(args, demos, claimed)
+        models = ActionModels.load(args.models) if args.models else load_default_models()
+        posture = PostureModel.load(args.posture) if args.posture else None
         if args.from_markers:
-            result = track_markers_episode(models, demos, args.episode, particles=args.particles, seed=args.seed)
+            result = track_markers_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
+                                           pose_proposal=args.pose_proposal, posture=posture)
         else:
             result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
                                    keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
-                                   silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera))
+                                   silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera),
+                                   pose_proposal=args.pose_proposal, posture=posture)
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
-                        "models": str(args.models or "shipped default models"), **summary}
+                        "models": str(args.models or "shipped default models"), "pose_proposal": args.pose_proposal,
+                        "posture": None if args.posture is None else str(args.posture), **summary}
             claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
         if "video" in claimed:
             body = BodyModel(models.marker_names_, torso_base=result.torso_base)
@@ -289,10 +301,56 @@ def _track(args: argparse.Namespace) -> int:
     print(f"episode {args.episode}: {summary['frames']} frames ({summary['frames'] / demos.fps:.1f} s at "
           f"{demos.fps:.0f} Hz) tracked at {summary['hz']:.0f} frames/s with {args.particles} particles: "
           f"RMS shoulder {100 * rms['shoulder']:.1f}, elbow {100 * rms['elbow']:.1f}, finger "
-          f"{100 * rms['index_tip']:.1f} cm; approach end {'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
+          f"{100 * rms['index_tip']:.1f} cm (pooled {100 * summary['rms_m_pooled']:.1f}); approach end "
+          f"{'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
           + ("no frame has a known class" if summary["frame_accuracy"] is None else
              f"class agrees with discovery's on {summary['frame_accuracy']:.0%} of frames, its kind on "
              f"{summary['kind_accuracy']:.0%}"))
+    return 0
+
+
+def _track_grid_reach(args: argparse.Namespace, demos, claimed: dict) -> int:
+    """``track --grid-model``: the paper's experiment on one reach of an approach-grid recording."""
+    from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA
+    from hoap_actions.tracking.episode import render_frames
+    from hoap_actions.tracking.grid_experiment import (
+        grid_reaches,
+        grid_tracking_models,
+        reach_effect_figure,
+        reach_picture,
+        track_grid_reach,
+    )
+
+    reaches = {r.episode: r for r in grid_reaches(demos)}
+    if args.episode not in reaches:
+        raise InvalidInputError(f"episode {args.episode} is not a reach of the 5 x 7 test grid; those are episodes "
+                                f"{min(reaches)}-{max(reaches)}")
+    reach = reaches[args.episode]
+    print(f"training the approach PHMM ({args.grid_model}) on the recording's 3 x 3 grid (a minute or more)",
+          flush=True)
+    models = grid_tracking_models(demos, args.grid_model, posture=args.grid_model == "thin-plate")
+    rendered = render_frames(demos, reach.episode, range(reach.end))
+    track = track_grid_reach(models, demos, reach, rendered, args.particles, args.seed, args.pose_proposal,
+                             silhouette=not args.edges_only, object_cue=not args.edges_only,
+                             keep_images="video" in claimed)
+    summary = track.summary()
+    if "report" in claimed:
+        document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed, "grid_model": args.grid_model,
+                    "pose_proposal": args.pose_proposal, "cues": "edges" if args.edges_only else "default",
+                    "target_m": reach.target.tolist(), **summary}
+        claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
+    if "video" in claimed:
+        write_video(claimed["video"], [reach_picture(track, DEMONSTRATOR_CAMERA, t)
+                                       for t in range(0, len(track.frames), 4)], demos.fps / 4)
+    if "figure" in claimed:
+        reach_effect_figure(track, claimed["figure"], demos.fps)
+    rms, settled = summary["rms_m"], summary["pointed_frame"]
+    print(f"episode {args.episode}, reach to {reach.location} of the 5 x 7 grid: {summary['frames']} frames tracked at "
+          f"{summary['hz']:.0f} frames/s with {args.particles} particles: RMS shoulder, elbow, finger pooled "
+          f"{100 * summary['rms_m_pooled']:.1f} cm (shoulder {100 * rms['shoulder']:.1f}, elbow "
+          f"{100 * rms['elbow']:.1f}, finger {100 * rms['index_tip']:.1f}); pointed position "
+          + ("never stays within 2 cm" if settled is None else f"within 2 cm from frame {settled}")
+          + f", {100 * summary['pointed_error_end_m']:.1f} cm off at the end")
     return 0
 
 
@@ -426,6 +484,17 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--from-markers", action="store_true",
                        help="track from the recording's markers and block instead of the camera's images "
                             "(recognition from motion capture)")
+    track.add_argument("--pose-proposal", choices=["offsets", "hand"], default="offsets",
+                       help="how particles pose the arm: offsets of every marker from the PHMM's mean (default), or "
+                            "the hand shifted and the shoulder and elbow generated from it (with --posture, by that "
+                            "posture model)")
+    track.add_argument("--posture", type=_path,
+                       help="a posture model file (PostureModel JSON) that poses the shoulder and elbow from the hand "
+                            "(--pose-proposal hand)")
+    track.add_argument("--grid-model", choices=["linear", "thin-plate"],
+                       help="the paper's experiment (Figs. 10-12) on an approach-grid recording: train the approach "
+                            "PHMM on its 3 x 3 grid (thin-plate: with a posture model; a minute or more) and track "
+                            "the reach of --episode, one of the 5 x 7 test grid's")
     track.add_argument("--overwrite", action="store_true", help="replace existing --json, --video, --figure files")
     track.set_defaults(func=_track)
     return parser

@@ -199,3 +199,28 @@ def _camera():
     from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA
 
     return DEMONSTRATOR_CAMERA
+
+
+def test_track_command_poses_from_the_hand_and_runs_the_paper_experiment_only_on_grids(small_demos, tmp_path, capsys):
+    """``track --pose-proposal hand --posture FILE`` tracks (here from markers) and says so in its report; the
+    paper's experiment (``--grid-model``) needs a recording with a 3 x 3 training grid and its own models."""
+    import json
+
+    from hoap_actions.apps.cli import main
+    from hoap_actions.demonstration.datasets import write_demonstrations
+
+    path = tmp_path / "small.h5"
+    write_demonstrations(path, small_demos)
+    frames = np.concatenate([e.H.reshape(e.T, -1) for e in small_demos])
+    PostureModel(alpha=1.0).fit(frames).save(tmp_path / "posture.json")
+    out = tmp_path / "hand.json"
+    assert main(["track", "--demos", str(path), "--episode", "3", "--particles", "50", "--from-markers",
+                 "--pose-proposal", "hand", "--posture", str(tmp_path / "posture.json"), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["pose_proposal"] == "hand" and report["posture"].endswith("posture.json")
+    assert report["rms_m_pooled"] > 0 and report["frames"] == small_demos[3].T
+    assert main(["track", "--demos", str(path), "--episode", "3", "--grid-model", "linear", "--models",
+                 str(tmp_path)]) == 2
+    assert main(["track", "--demos", str(path), "--episode", "3", "--grid-model", "linear"]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert "leave out --models" in errors[-2] and "no reaches of grid '3x3'" in errors[-1]

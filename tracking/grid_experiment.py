@@ -14,6 +14,7 @@ marker's, and the frame from which the estimated pointed position (the red dot o
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,13 +32,20 @@ from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.models.class_models import EFFECT_DIM, ClassModel
 from hoap_actions.primitives.models.connected_recognition import exit_probability
 from hoap_actions.tracking.action_tracker import ActionTracker, TrackedFrame
-from hoap_actions.tracking.episode import SCORED_MARKERS, TABLE_TOP_Z, RenderedFrames, pooled_rms, track_frames
+from hoap_actions.tracking.episode import (
+    SCORED_MARKERS,
+    TABLE_TOP_Z,
+    RenderedFrames,
+    pooled_rms,
+    render_frames,
+    track_frames,
+)
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
 
-__all__ = ["GRID_MEAN_MODELS", "POINTED_WITHIN_M", "GridReach", "ReachTrack", "approach_tracking_models",
-           "grid_reaches", "grid_tracking_models",
-           "reach_effect_figure", "reach_picture", "settling_frame", "track_grid_reach"]
+__all__ = ["GRID_MEAN_MODELS", "POINTED_WITHIN_M", "VARIANT_CUES", "GridReach", "ReachTrack",
+           "approach_tracking_models", "grid_reaches", "grid_tracking_models", "pool_reaches", "reach_effect_figure",
+           "reach_picture", "run_grid_experiment", "settling_frame", "track_grid_reach", "variant_name"]
 
 TRAIN_GRID, TEST_GRID = "3x3", "5x7"
 GRID_STATES = 40  # Fig. 8's approach PHMMs
@@ -259,3 +267,73 @@ def reach_picture(track: ReachTrack, camera: Camera, t: int) -> np.ndarray:
     cv2.putText(edges, f"edge image G, frame {t}", (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (255, 255, 255), 1,
                 cv2.LINE_AA)
     return np.hstack([edges, picture])
+
+
+VARIANT_CUES = {"default": (True, True), "edges": (False, False)}  # (silhouette, block located in the image)
+
+
+def run_grid_experiment(demos: Demonstrations, models: Mapping[str, TrackingModels],
+                        variants: Sequence[tuple[str, str, str]], reaches: Sequence[GridReach], particles: int = 400,
+                        seed: int = 0, keep: tuple[int, str] | None = None,
+                        progress: Callable[[GridReach, str, dict], None] | None = None
+                        ) -> tuple[dict[str, list[dict]], list[dict], ReachTrack | None]:
+    """Track every reach once per variant ``(models key, pose proposal, cues)`` (cues: ``"default"``, edges,
+    silhouette and the block located in the image; ``"edges"``, the edge image alone, the paper's eq. 8), each
+    reach rendered once and seen by every variant with the same filter seed. Returns each variant's reach
+    summaries (:meth:`ReachTrack.summary`), each reach's baselines (the arm held at its first pose; the
+    pointed position put at the training effects' mean) and, with ``keep`` ``(episode, variant)``, that
+    track with its images (for Figs. 11 and 12)."""
+    for name, proposal, cues in variants:
+        if name not in models or cues not in VARIANT_CUES:
+            raise InvalidInputError(f"a variant is (models, pose proposal, cues) with models in {sorted(models)} and "
+                                    f"cues in {sorted(VARIANT_CUES)}; got {(name, proposal, cues)}")
+    results: dict[str, list[dict]] = {variant_name(v): [] for v in variants}
+    baselines, kept = [], None
+    for reach in reaches:
+        rendered = render_frames(demos, reach.episode, range(reach.end))
+        truth = demos[reach.episode].H[:reach.end]
+        held = np.linalg.norm(truth[:1] - truth, axis=2)
+        guess = np.mean([m.classes[0].phmm.train_phi_.mean(axis=0) for m in models.values()], axis=0)
+        baselines.append({"episode": reach.episode, "held_still_rms_m_pooled": pooled_rms(held, MARKER_NAMES),
+                          "held_still_rms_m_all": float(np.sqrt(np.mean(held**2))),
+                          "pointed_at_training_mean_m": float(np.linalg.norm(guess - reach.target))})
+        for variant in variants:
+            name, proposal, cues = variant
+            silhouette, block = VARIANT_CUES[cues]
+            keep_this = keep is not None and keep == (reach.episode, variant_name(variant))
+            track = track_grid_reach(models[name], demos, reach, rendered, particles, seed, proposal, silhouette,
+                                     block, keep_images=keep_this)
+            summary = track.summary()
+            results[variant_name(variant)].append(summary)
+            kept = track if keep_this else kept
+            if progress is not None:
+                progress(reach, variant_name(variant), summary)
+    return results, baselines, kept
+
+
+def variant_name(variant: tuple[str, str, str]) -> str:
+    """``"models / proposal / cues"``: how a variant is named in results."""
+    return " / ".join(variant)
+
+
+def pool_reaches(summaries: Sequence[dict], by_frame: int = 60) -> dict:
+    """One recording's figures from its reach summaries: RMS (m) pooled over every frame of every reach, per
+    scored marker, over the three (the paper's figure) and over all markers; the share of reaches whose pointed
+    position settled within 2 cm by ``by_frame`` (and their count), the median settling frame of those that
+    settled, how many never did; the median frame rate."""
+    frames = np.array([s["frames"] for s in summaries], float)
+
+    def pooled(values: list[float]) -> float:
+        return float(np.sqrt(np.sum(frames * np.square(values)) / frames.sum()))
+
+    settled = [s["pointed_frame"] for s in summaries if s["pointed_frame"] is not None]
+    early = sum(frame <= by_frame for frame in settled)
+    return {"rms_m": {m: pooled([s["rms_m"][m] for s in summaries]) for m in SCORED_MARKERS},
+            "rms_m_pooled": pooled([s["rms_m_pooled"] for s in summaries]),
+            "rms_m_all": pooled([s["rms_m_all"] for s in summaries]),
+            "pointed_by_frame": by_frame, "pointed_by_frame_count": int(early), "reaches": len(summaries),
+            "pointed_by_frame_share": early / len(summaries),
+            "pointed_frame_median": float(np.median(settled)) if settled else None,
+            "never_settled": len(summaries) - len(settled),
+            "pointed_error_end_m_median": float(np.median([s["pointed_error_end_m"] for s in summaries])),
+            "hz": float(np.median([s["hz"] for s in summaries]))}

@@ -14,15 +14,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
-from hoap_actions.primitives.hmm.posture import PostureModel
+from hoap_actions.primitives.hmm.posture import PostureModel, choose_alpha
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.models.class_models import ClassModel
 
-__all__ = ["TrackingModels"]
+__all__ = ["POSTURE_GROUPS", "TrackingModels", "posture_from_recording"]
+
+POSTURE_GROUPS = 8  # groups of episodes left out in turn when a posture model's penalty is chosen
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,7 +69,26 @@ class TrackingModels:
 
     @classmethod
     def from_action_models(cls, models: ActionModels, posture: PostureModel | None = None) -> TrackingModels:
-        """The tracker's view of fitted action models, with ``posture`` if given."""
+        """The tracker's view of fitted action models, with ``posture`` if given (else the models' own posture
+        model, ``posture_``, when they carry one)."""
         check_is_fitted(models)
+        posture = posture if posture is not None else getattr(models, "posture_", None)
         return cls(dict(models.classes_), models.grammar_, tuple(models.marker_names_),
                    int(models.discovery_.hand_marker), posture)
+
+
+def posture_from_recording(demos: Demonstrations, n_groups: int = POSTURE_GROUPS) -> PostureModel:
+    """A :class:`PostureModel` of every frame of a training recording (e.g. one the action models learned
+    from), its penalty chosen by leaving out one of ``n_groups`` groups of whole episodes at a time (every
+    ``n_groups``-th episode in a group: each holds every action). Frames with a missing marker are left out.
+    Save it (``.save(path)``) for ``hoap-actions track --posture``."""
+    if tuple(demos.marker_names) != MARKER_NAMES:
+        raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not {list(MARKER_NAMES)}")
+    if isinstance(n_groups, bool) or not isinstance(n_groups, (int, np.integer)) or not 2 <= n_groups <= len(demos):
+        raise InvalidInputError(f"n_groups must be an int from 2 to the recording's {len(demos)} episodes; got "
+                                f"{n_groups!r}")
+    frames = [episode.H.reshape(episode.T, -1) for episode in demos]
+    frames = [x[np.all(np.isfinite(x), axis=1)] for x in frames]
+    groups = [frames[k::n_groups] for k in range(n_groups)]
+    alpha, _ = choose_alpha(groups)
+    return PostureModel(alpha=alpha).fit(np.concatenate(frames))
