@@ -28,7 +28,7 @@ from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Sim
 from hoap_actions.envs.task import Task
-from hoap_actions.errors import InvalidInputError, ResetNeededError
+from hoap_actions.errors import EnvClosedError, InvalidInputError, ResetNeededError
 from hoap_actions.imitation import goals
 from hoap_actions.imitation.demonstrations import Demonstration, DemonstrationWorld, ShownEpisode
 
@@ -200,6 +200,8 @@ class ImitateTask(Task):
             self._desired = goals.goal_vector(position, quaternion, self._desired[7:9], True)
 
     def demonstration(self) -> Demonstration:
+        if self.sim.closed:
+            raise EnvClosedError("demonstration() called on a closed environment; create a new one with gymnasium.make")
         if self.shown is None:
             raise ResetNeededError("no demonstration yet: call reset() first")
         if self._rendered is None:
@@ -303,6 +305,13 @@ class ImitateEnv(HoapEnv):
     def demonstration(self) -> Demonstration:
         """This episode's demonstration as the camera filmed it (rendered at the first call, then kept)."""
         return self.task.demonstration()
+
+    def true_demonstration(self) -> ShownEpisode:
+        """The oracle: what this episode's demonstration truly was (action, block start and end, markers).
+        For evaluation and the execution-ceiling baseline only; a policy that imitates must not call it."""
+        if self.task.shown is None:
+            raise ResetNeededError("no demonstration yet: call reset() first")
+        return self.task.shown
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
                        info: dict | Sequence[dict] | None) -> np.ndarray:

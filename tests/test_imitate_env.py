@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.demonstration.datasets import load_demonstrations, write_demonstrations
 from hoap_actions.envs import world
-from hoap_actions.errors import DataFileError, InvalidInputError, ResetNeededError
+from hoap_actions.errors import DataFileError, EnvClosedError, InvalidInputError, ResetNeededError
 from hoap_actions.imitation import goals
 from hoap_actions.imitation.imitate_env import BLOCK, BLOCK_SIZE, SHIFT_MIN
 
@@ -146,13 +146,16 @@ def test_the_demonstration_is_frames_and_a_camera_never_markers(env):
     assert len(shown.frames) == len(truth.Q)
 
 
-def test_a_fresh_env_has_no_demonstration_before_its_reset():
+def test_a_fresh_env_has_no_demonstration_before_its_reset_nor_a_closed_one_after():
     env = make()
     try:
         with pytest.raises(ResetNeededError):
             env.get_wrapper_attr("demonstration")()
+        env.reset(seed=0)
     finally:
         env.close()
+    with pytest.raises(EnvClosedError):
+        env.get_wrapper_attr("demonstration")()
 
 
 def test_the_block_starts_at_the_human_start_mapped_and_its_target_is_the_human_end_mapped(env):
