@@ -4,8 +4,9 @@ and seen through the demonstration world's camera.
 A drawn demonstration is one of the paper preset's kinds of episode (push or move 5, 10 or 15 cm
 left, right, forward or backward; rotate 60 degrees either way) or an approach to the block, by one of
 the project's demonstrators (:data:`~hoap_actions.demonstration.bodies.DEMONSTRATORS`), every draw from
-the generator it is given. Performing it runs the demonstration world's physics (0.2-0.4 s); its
-camera frames are rendered only when asked for (about 24 ms a 320 x 240 frame, 3-6 s an episode).
+the generator it is given. Performing it runs the demonstration world's physics (a fraction of a
+second); its camera frames, some 400 an episode, are rendered only when asked for (what each costs:
+``benchmarks/imitate_env.py``).
 """
 
 from __future__ import annotations
@@ -133,7 +134,7 @@ class DemonstrationWorld:
     def perform(self, rng: np.random.Generator, demonstrator: str | None = None) -> ShownEpisode:
         """Draw a demonstrator (unless named), a task (:func:`draw_task`) and perform it, every draw from
         ``rng``. A performance that missed its aim (:func:`as_intended`: the simulated person's grasp
-        slipped, say; 1 in 120 draws) is not shown: the draw is made again."""
+        slipped, say; by hand, 1 of the draws of seeds 0-119) is not shown: the draw is made again."""
         for _ in range(MAX_DEMONSTRATION_TRIES):
             name = demonstrator if demonstrator is not None else \
                 sorted(DEMONSTRATORS)[int(rng.integers(len(DEMONSTRATORS)))]
