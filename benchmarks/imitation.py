@@ -1,0 +1,95 @@
+"""The execution ceiling of ``Imitate-v0``: the robot told the true action and effect of each demonstration
+(``"imitation-oracle"``) beside the robot doing nothing (``"nothing"``), on the same episodes, in one run.
+
+Held-out episodes, declared in ``docs/experiments/imitation.md`` before the first run: seeds 91000-91199,
+``level="mapped"``, once per robot. Choices were made on the validation seeds 90000-90099.
+
+    python benchmarks/imitation.py [--robot fixed_legs|full] [--seeds 91000 91200] [--workers 1]
+
+Per policy: success rate with its 95 % Wilson interval, per demonstrated action too, falls, how episodes
+ended, the mean wall time per episode (on a shared, loaded machine). Writes
+``results/imitation_<robot>.json`` (or ``--output``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import gymnasium
+
+from hoap_actions.apps.episodes import compare_policies, summarise, wilson_interval
+from hoap_actions.envs.robot import ROBOT_MODELS
+from hoap_actions.policies.imitation_policy import ACTIONS
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import RESULTS, arguments, numeric_environment, write_json
+
+ENV_ID = "hoap_actions/Imitate-v0"
+HELD_OUT_SEEDS = (91000, 91200)  # [first, stop): declared in docs/experiments/imitation.md, run once per robot
+POLICIES = {"oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
+
+
+def shown_actions(seeds: range, robot: str) -> dict[int, str]:
+    """The action each seed's demonstration shows (the env's oracle, read after a reset)."""
+    env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta")
+    try:
+        actions = {}
+        for seed in seeds:
+            env.reset(seed=seed)
+            actions[seed] = env.get_wrapper_attr("true_demonstration")().action
+    finally:
+        env.close()
+    return actions
+
+
+def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
+    """Successes, episodes and the Wilson interval per demonstrated action."""
+    table = {}
+    for action in ACTIONS:
+        mine = [e for e in episodes if actions[e.seed] == action]
+        successes = sum(e.success for e in mine)
+        table[action] = {"successes": successes, "episodes": len(mine),
+                         "success_rate": successes / len(mine) if mine else None,
+                         "success_ci95": wilson_interval(successes, len(mine))}
+    return table
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("imitation.json")])
+    parser.add_argument("--seeds", type=int, nargs=2, default=HELD_OUT_SEEDS, metavar=("FIRST", "STOP"))
+    parser.add_argument("--robot", default="fixed_legs", choices=list(ROBOT_MODELS))
+    parser.add_argument("--workers", type=int, default=1)
+    args = parser.parse_args()
+    if args.output == RESULTS / "imitation.json":
+        args.output = RESULTS / f"imitation_{args.robot}.json"
+    seeds = range(*args.seeds)
+    start = time.perf_counter()
+    results = compare_policies(ENV_ID, POLICIES, seeds, workers=args.workers, robot=args.robot)
+    wall = time.perf_counter() - start
+    actions = shown_actions(seeds, args.robot)
+    document = {"env": ENV_ID, "level": "mapped", "seeds": list(args.seeds), "robot": args.robot,
+                "workers": args.workers, "wall_s": wall, "environment": numeric_environment(None)}
+    for name, episodes in results.items():
+        summary = summarise(episodes)
+        summary["by_action"] = by_action(episodes, actions)
+        for episode in summary["episodes"]:
+            episode["action"] = actions[episode["seed"]]
+        document[name] = summary
+        low, high = summary["success_ci95"]
+        print(f"{name:>8} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "
+              f"{len(episodes)} episodes, falls {summary['falls']}, mean episode {summary['mean_wall_s']:.1f} s, "
+              f"{summary['reasons']}")
+        for action, row in summary["by_action"].items():
+            a, b = row["success_ci95"]
+            print(f"{'':>10}{action:>9}: {row['successes']}/{row['episodes']} [{a:.1%}, {b:.1%}]")
+    oracle, nothing = results["oracle"], results["nothing"]
+    document["paired"] = {"oracle_only": sum(o.success and not n.success for o, n in zip(oracle, nothing)),
+                          "nothing_only": sum(n.success and not o.success for o, n in zip(oracle, nothing))}
+    write_json(args.output, document)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,361 @@
+"""The robot's hand skills on the block of ``Imitate-v0``: approach, place (grasp, carry, set down) and push.
+
+The action space is ``ee_delta``: the hand's position and the thumb's closure, no twist of the wrist. The
+hand's heading about the vertical is the whole-body IK's choice, a function of where the hand is (about
+3 degrees more per centimetre to the left, measured on both robots; none of it depends on the path
+there). So the palm can only press on the block at the heading of where it stands, and a grasp turns the
+block to it (the squeeze lays a face flat on the palm). The thumb is the one face whose heading the
+policy sets: it pivots on the hand, from 45 degrees open to 15 degrees past parallel with the palm, and
+the closure turns it (:func:`thumb_angle`). Its outer face pushes the block away from the hand's thumb
+side, and a cube pushed by a flat face turns until a face lies flat on it: a push with the thumb held
+at the target's heading (the closure servoed against the hand's measured heading, every step) moves the
+block along the face's normal and leaves it turned as the target. That push is the skill every block
+target ends with; where the block is not already behind its target on that line, a grasp first carries
+it there (:meth:`BlockHand.place`).
+
+Skills are generators: each ``next()`` gives the ee_delta action for the current step, the hand's fields
+having been updated by :meth:`BlockHand.observe`. Hand paths are legs of the execution layer
+(:mod:`~hoap_actions.policies.execution`): the desired point steps at the hand's speed limit (or a
+fraction of it), and a leg ends when the controller's reference has arrived and the measured hand has
+settled within the leg's tolerance.
+
+Where the block is comes from the overhead camera (:func:`~hoap_actions.vision.block.locate_block`): at
+the start, after each skill, and every few steps during a push (at a quarter of the resolution, where
+the hand hides least of it), never from the simulator.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import gymnasium
+import numpy as np
+
+from hoap_actions.controllers.hand_control import rest_posture
+from hoap_actions.controllers.wholebody_ik import WholeBodyIK
+from hoap_actions.envs.controls import HAND_BOX_HIGH, HAND_BOX_LOW, MAX_HAND_STEP
+from hoap_actions.imitation.imitate_env import BLOCK_SIZE
+from hoap_actions.policies.execution import MOVE_STEPS, REACH_TOLERANCE, REFERENCE_ARRIVED, SETTLE_SPEED
+from hoap_actions.policies.grasp import THUMB_CONTACT_CLOSURE, THUMB_RANGE, thumb_outline
+from hoap_actions.vision.block import BlockDetection, locate_block
+
+__all__ = ["BlockHand", "BlockPose", "closure_for", "thumb_angle"]
+
+logger = logging.getLogger(__name__)
+
+CAMERA = "overhead"
+LOOK_SIZE = (320, 240)  # px, a look with the hand away: 0.3 mm on the block's centre, 3 degrees on its turn
+SERVO_LOOK_SIZE = (160, 120)  # px, the looks during a push: a quarter of the rendering cost
+MIN_HELD_PIXELS = 100  # top-face pixels (at LOOK_SIZE) of a held block seen well enough to say where it sits
+SERVO_LOOK_STEPS = 3  # env steps between looks during a push
+HALF = BLOCK_SIZE / 2.0
+TRAVEL_Z = 0.075  # m, tcp height between skills: the palm (2 cm below the tcp) clears the 5 cm pegs by 0.5 cm
+RETREAT = 0.045  # m, how far back along the forearm the hand goes for the camera to see the block
+HOVER_Z = 0.05  # m, tcp height over the block: the palm 1 cm over its top
+PUSH_Z = 0.026  # m, tcp height while the thumb pushes: its plate (tcp +- 1.5 cm) covers the cube's upper half
+GRASP_Z = 0.024  # m, tcp height of a grasp: the palm's lower edge just over the table (the hand leans ~10 deg)
+CARRY_LIFT = 0.012  # m, how far a grasped block is lifted to be carried
+OPEN = 0.25  # closure of a hand coming down over the block: the thumb 30 deg open, a 29 mm gap at the block
+LET_GO = 0.5  # closure that lets go of the set-down cube: the thumb just off it (wider drags it along as it swings)
+SQUEEZE = 0.7  # closure that holds the cube: the thumb meets a 20 mm cube at about 0.6
+PALM_INNER_V = 0.0075  # m, the palm's inner face off the tcp, thumb-wards negative (grasp.PALM)
+PALM_GAP = 0.0035  # m, gap left between the palm and the block while coming down
+SQUEEZE_STEPS = 10  # steps (0.33 s) for the thumb to close on the block
+RELEASE_STEPS = 8  # steps for the thumb to open off the set-down block
+PUSH_SPEED = 0.3  # of the hand's speed limit while pushing: 4.5 cm/s
+HAND_OFF = 0.035  # m, about how far the tcp stands from the block's centre while the thumb pushes it
+PUSH_GAP = 0.004  # m, gap between the thumb and the block before the push
+PUSH_ALONG = 0.03  # m, where along the thumb's outer face (from its back end) it meets the block
+PUSH_OVERSHOOT = 0.004  # m, a push ends once the block is this far past its target along the push
+MAX_PUSH = 0.08  # m, the longest push
+PUSH_STANDOFF = 0.015  # m, how far behind its target a block is placed for a push that must also turn it
+LATERAL_GAIN = 0.7  # of the block's lateral error the hand moves per look: the thumb holds the block by friction
+THUMB_LOW = -THUMB_CONTACT_CLOSURE * THUMB_RANGE  # rad, the thumb's angle to the palm fully open (closure 0)
+THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (closure 1)
+
+
+def thumb_angle(closure: float) -> float:
+    """The thumb's angle (rad) to the palm about the hand's vertical at a gripper closure in [0, 1]:
+    0 parallel (closure 0.75), negative open (:func:`~hoap_actions.policies.grasp.thumb_outline`)."""
+    return float((closure - THUMB_CONTACT_CLOSURE) * THUMB_RANGE)
+
+
+def closure_for(angle: float) -> float:
+    """The closure that sets the thumb at ``angle`` (rad) to the palm, held within [0, 1]."""
+    return float(np.clip(THUMB_CONTACT_CLOSURE + angle / THUMB_RANGE, 0.0, 1.0))
+
+
+def wrap_quarter(angle: float) -> float:
+    """An angle (rad) modulo a quarter turn, in [-pi/4, pi/4): a cube's turn as it looks."""
+    return float((angle + np.pi / 4) % (np.pi / 2) - np.pi / 4)
+
+
+def _unit(angle: float) -> np.ndarray:
+    return np.array([np.cos(angle), np.sin(angle)])
+
+
+def _rotation2(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+@dataclass(frozen=True)
+class BlockPose:
+    """The block on the table: its centre ``xy`` (2,) (m) and its turn ``yaw`` about the vertical (rad,
+    modulo a quarter turn), with whether the camera saw its whole top face."""
+
+    xy: np.ndarray
+    yaw: float
+    whole: bool = True
+
+    @classmethod
+    def from_detection(cls, found: BlockDetection) -> BlockPose:
+        return cls(found.position_m[:2].copy(), found.yaw_rad, found.whole)
+
+
+@dataclass(frozen=True)
+class PushPlan:
+    """A thumb push: the face's heading ``face`` (rad, world), the push ``direction`` (unit (2,), the
+    face's outer normal), the thumb's angle to the palm at the end (rad) and the tcp points (3,) where
+    the thumb comes down (``start``) and, ahead of it, that put the block at the target (``end``)."""
+
+    face: float
+    direction: np.ndarray
+    thumb: float
+    start: np.ndarray
+    end: np.ndarray
+
+
+class BlockHand:
+    """The hand of a robot in an ``Imitate-v0`` env (``control_mode="ee_delta"``) and its skills on the block.
+
+    It reads the hand through the observation (``parse_observation``), the controller's reference through
+    ``hand_status``, the block through the overhead camera (``capture``), and asks its own whole-body IK
+    model how the hand will be headed where it plans to put it.
+    """
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        self.env = env
+        self._parse = env.get_wrapper_attr("parse_observation")
+        self._capture = env.get_wrapper_attr("capture")
+        self._fps = float(env.metadata["render_fps"])
+        robot = env.get_wrapper_attr("robot_description")
+        self.ik = WholeBodyIK(robot.joint_names, rest_posture(robot), fixed_legs=robot.fixed_legs)
+        self.fields: dict = {}
+        self.desired = np.zeros(3)
+        self.grip = OPEN
+        self.looks = 0
+        self.seen: BlockDetection | None = None
+
+    # ------------------------------------------------------------------ state
+    def start(self, obs: dict[str, np.ndarray]) -> None:
+        """A new episode: the hand holds where it is, the thumb opens."""
+        self.fields = self._parse(obs)
+        self.tcp = self.fields["tcp_position"]
+        self.previous_tcp = self.tcp.copy()
+        self.desired = self.tcp.copy()
+        self.grip = OPEN
+        self.looks = 0
+        f = self.fields
+        self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
+
+    def observe(self, obs: dict[str, np.ndarray]) -> None:
+        """This step's observation: the hand's position and joints."""
+        self.fields = self._parse(obs)
+        self.previous_tcp = self.tcp
+        self.tcp = self.fields["tcp_position"]
+
+    @property
+    def speed(self) -> float:
+        """The hand's measured speed (m/s)."""
+        return float(np.linalg.norm(self.tcp - self.previous_tcp) * self._fps)
+
+    def look(self, size: tuple[int, int] = LOOK_SIZE, resting: bool = True) -> BlockPose | None:
+        """The block as the overhead camera sees it now (on the table, or held: ``resting=False``), or
+        None when it does not."""
+        view = self._capture(CAMERA, *size)
+        self.looks += 1
+        found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE, resting)
+        self.seen = found
+        return None if found is None else BlockPose.from_detection(found)
+
+    def hand_rotation(self) -> np.ndarray:
+        """The hand's rotation (3, 3) now, from the observed joints (forward kinematics)."""
+        f = self.fields
+        return self.ik.hand_pose_at(f["joint_positions"], f["base_position"], f["base_quaternion"])[:3, :3]
+
+    def heading_at(self, point: np.ndarray) -> float:
+        """The hand's heading (rad) about the vertical where the IK model puts it at ``point`` (3,)."""
+        f = self.fields
+        self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
+        rotation = self.ik.probe(point).rotation
+        return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+    # ------------------------------------------------------------------ legs
+    def _action(self, target: np.ndarray, speed: float) -> np.ndarray:
+        """The ee_delta action that steps the desired hand point towards ``target`` (straight, at
+        ``speed`` of the limit) with the current grip."""
+        step = (np.clip(target, HAND_BOX_LOW, HAND_BOX_HIGH) - self.desired) / MAX_HAND_STEP
+        step /= max(1.0, float(np.max(np.abs(step))) / speed)
+        self.desired = np.clip(self.desired + MAX_HAND_STEP * step, HAND_BOX_LOW, HAND_BOX_HIGH)
+        return np.array([*step, self.grip], dtype=np.float32)
+
+    def go(self, point: np.ndarray, grip: float | Callable[[], float] | None = None, speed: float = 1.0,
+           tolerance: float = REACH_TOLERANCE) -> Iterator[np.ndarray]:
+        """A straight leg to ``point`` (3,), ending as the execution layer's legs end; ``grip`` is a
+        closure held (None: the current one) or a function called every step (a servo)."""
+        point = np.clip(np.asarray(point, dtype=float), HAND_BOX_LOW, HAND_BOX_HIGH)
+        waited = 0
+        while True:
+            if grip is not None:
+                self.grip = float(grip() if callable(grip) else grip)
+            yield self._action(point, speed)
+            reference = self.env.get_wrapper_attr("hand_status").reference
+            if np.allclose(self.desired, point) and np.linalg.norm(reference - point) < REFERENCE_ARRIVED:
+                waited += 1
+                if (np.linalg.norm(self.tcp - point) < tolerance and self.speed < SETTLE_SPEED) or waited > MOVE_STEPS:
+                    return
+
+    def hold(self, steps: int, grip: float | None = None) -> Iterator[np.ndarray]:
+        """Keep the hand where it is wanted for ``steps`` steps (the thumb moving to ``grip``)."""
+        if grip is not None:
+            self.grip = float(grip)
+        for _ in range(steps):
+            yield self._action(self.desired, 1.0)
+
+    def travel(self, point: np.ndarray, grip: float | None = None) -> Iterator[np.ndarray]:
+        """Up to :data:`TRAVEL_Z` (unless higher already), across, and down to ``point``."""
+        up = max(TRAVEL_Z, self.tcp[2])
+        if self.tcp[2] < up - 0.005:
+            yield from self.go([*self.tcp[:2], up], grip, tolerance=0.005)
+        if np.linalg.norm(self.tcp[:2] - point[:2]) > 0.005:
+            yield from self.go([*point[:2], up], grip, tolerance=0.004)
+        yield from self.go(point, grip)
+
+    # ------------------------------------------------------------------ skills
+    def approach(self, point_xy: np.ndarray) -> Iterator[np.ndarray]:
+        """Point at ``point_xy`` (2,): the tcp over it, the palm a centimetre over the block's top."""
+        yield from self.travel(np.array([*point_xy, HOVER_Z]), OPEN)
+        yield from self.hold(int(self._fps))  # held there: the hand settles on the point
+
+    def place(self, block: BlockPose, target_xy: np.ndarray) -> Iterator[np.ndarray]:
+        """Grasp the block, carry it low over the table, set it down with its centre at ``target_xy``
+        (2,), let go and rise. The grasp lays a face of the block on the palm, so it arrives turned as
+        the hand is headed there."""
+        heading = self.heading_at(np.array([*block.xy, GRASP_Z]))
+        y_axis = _unit(heading + np.pi / 2)  # from the thumb to the palm
+        over = block.xy - (PALM_INNER_V - PALM_GAP - HALF) * y_axis  # the block thumb-wards, a gap off the palm
+        yield from self.travel(np.array([*over, HOVER_Z]), OPEN)
+        yield from self.go([*over, GRASP_Z], OPEN, speed=0.5)
+        touch = block.xy - (PALM_INNER_V - HALF) * y_axis
+        yield from self.go([*touch, GRASP_Z], speed=0.2, tolerance=0.001)
+        yield from self.hold(SQUEEZE_STEPS, SQUEEZE)
+        in_hand = self.hand_rotation().T @ np.array([*(block.xy - self.tcp[:2]), HALF - self.tcp[2]])
+        yield from self.go([*self.tcp[:2], GRASP_Z + CARRY_LIFT], speed=0.5, tolerance=0.003)
+        held = self.look(resting=False)  # the squeeze may have shifted it: where it sits in the hand now
+        if held is not None and self.seen.top_pixels >= MIN_HELD_PIXELS:
+            rotation = self.hand_rotation()
+            in_hand = rotation.T @ np.array([*(held.xy - self.tcp[:2]), (rotation @ in_hand)[2]])
+        # where the tcp puts the held block's centre over the target: the hand turns on the way, so
+        # the IK model is asked how it is headed there (twice: the tcp moves with the answer)
+        end = np.array([*target_xy, GRASP_Z + CARRY_LIFT])
+        for _ in range(2):
+            f = self.fields
+            self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
+            offset = self.ik.probe(end).rotation @ in_hand
+            end = np.array([*(target_xy - offset[:2]), GRASP_Z + CARRY_LIFT])
+        logger.debug("place: in hand %s, tcp %s, end %s", np.round(in_hand, 4), np.round(self.tcp, 4), np.round(end, 4))
+        yield from self.go(end, speed=0.5)
+        yield from self.go([*end[:2], GRASP_Z + 0.001], speed=0.3, tolerance=0.003)
+        yield from self.hold(RELEASE_STEPS, LET_GO)
+        yield from self.retreat()
+
+    def push_face(self, target_xy: np.ndarray, yaw: float) -> float:
+        """The heading (rad, world) of the thumb's outer face that leaves the block at ``target_xy`` (2,)
+        turned ``yaw`` (rad, modulo a quarter turn): of the four headings a cube face can have, the one
+        the thumb reaches nearest the middle of its range where the hand stands for the push (on the
+        thumb's side of the block, about 3.5 cm off)."""
+        best = None
+        for k in range(-2, 3):
+            face = wrap_quarter(yaw) + k * np.pi / 2
+            heading = self.heading_at(np.array([*(target_xy + HAND_OFF * _unit(face + np.pi / 2)), PUSH_Z]))
+            thumb = face - heading
+            key = (max(THUMB_LOW - thumb, thumb - THUMB_HIGH, 0.0), abs(thumb - (THUMB_LOW + THUMB_HIGH) / 2))
+            if best is None or key < best[0]:
+                best = (key, face)
+            if key[0] == 0.0 and abs(face) <= np.pi / 4:  # the face whose push goes to the hand's right: the usual
+                break
+        return best[1]
+
+    def contact_tcp(self, block_xy: np.ndarray, face: float, gap: float) -> tuple[np.ndarray, float]:
+        """The tcp point (3,) at push height whose thumb, at heading ``face``, stands ``gap`` (m) off the
+        block at ``block_xy`` (2,), and the thumb's angle to the palm there (rad): the hand's heading is
+        the IK model's where the tcp then is, so the two are found together (three rounds)."""
+        tcp = block_xy + HAND_OFF * _unit(face + np.pi / 2)
+        for _ in range(3):
+            heading = self.heading_at(np.array([*tcp, PUSH_Z]))
+            thumb = float(np.clip(face - heading, THUMB_LOW, THUMB_HIGH))
+            tcp = self.tcp_for_contact(block_xy, heading, thumb, gap)
+        return np.array([*tcp, PUSH_Z]), thumb
+
+    def plan_push(self, block: BlockPose, target_xy: np.ndarray, face: float) -> PushPlan:
+        """A push of the block from ``block`` to ``target_xy`` (2,) by the thumb's outer face at heading
+        ``face`` (rad), along the face's outer normal."""
+        start, thumb = self.contact_tcp(block.xy, face, PUSH_GAP)
+        end, _ = self.contact_tcp(target_xy, face, -PUSH_OVERSHOOT)
+        return PushPlan(face, _unit(face - np.pi / 2), thumb, start, end)
+
+    @staticmethod
+    def tcp_for_contact(block_xy: np.ndarray, heading: float, thumb: float, gap: float) -> np.ndarray:
+        """The tcp's xy (2,) that puts the thumb's outer face (at ``thumb`` rad to the palm, the hand
+        headed ``heading``) ``gap`` (m) short of the side of a block centred at ``block_xy``, meeting it
+        :data:`PUSH_ALONG` from the thumb's back end."""
+        outline = thumb_outline(closure_for(thumb))  # tcp frame: back-outer, front-outer, front-inner, back-inner
+        along = (outline[1] - outline[0]) / np.linalg.norm(outline[1] - outline[0])
+        normal = np.array([along[1], -along[0]])  # out of the outer face
+        contact = outline[0] + PUSH_ALONG * along
+        return block_xy - _rotation2(heading) @ (contact + (HALF + gap) * normal)
+
+    def push(self, plan: PushPlan, target_xy: np.ndarray) -> Iterator[np.ndarray]:
+        """Run a :class:`PushPlan`: the thumb set, down beside the block, then along the push with the
+        thumb's closure servoed to keep the face at its heading and the hand steered sideways by what the
+        camera sees of the block, until the block is :data:`PUSH_OVERSHOOT` past the target."""
+        direction = plan.direction
+        side = np.array([-direction[1], direction[0]])
+
+        def servo() -> float:
+            rotation = self.hand_rotation()
+            return closure_for(plan.face - float(np.arctan2(rotation[1, 0], rotation[0, 0])))
+
+        yield from self.travel(np.array([*plan.start[:2], HOVER_Z]), closure_for(plan.thumb))
+        yield from self.go(plan.start, servo, speed=0.5, tolerance=0.003)
+        line = plan.start[:2].copy()  # the tcp's path: along the push, shifted sideways by the looks
+        travelled = 0.0
+        full = float((plan.end[:2] - plan.start[:2]) @ direction)
+        while travelled < min(full, MAX_PUSH):
+            travelled += SERVO_LOOK_STEPS * PUSH_SPEED * MAX_HAND_STEP
+            point = np.array([*(line + travelled * direction), PUSH_Z])
+            for _ in range(SERVO_LOOK_STEPS):
+                self.grip = servo()
+                yield self._action(point, PUSH_SPEED)
+            seen = self.look(SERVO_LOOK_SIZE)
+            logger.debug("push: tcp %s travelled %.4f of %.4f, block seen %s", np.round(self.tcp, 4), travelled, full,
+                         None if seen is None else np.round(seen.xy, 4))
+            if seen is None:
+                continue
+            error = target_xy - seen.xy
+            if error @ direction < -PUSH_OVERSHOOT:
+                break
+            line = line + LATERAL_GAIN * float(error @ side) * side
+            full = travelled + float(error @ direction) + PUSH_OVERSHOOT
+        yield from self.go([*(self.desired[:2] - PUSH_GAP * direction), PUSH_Z], speed=0.5, tolerance=0.004)
+        yield from self.retreat()
+
+    def retreat(self) -> Iterator[np.ndarray]:
+        """Up off the block, then back along the forearm out of the overhead camera's view of it."""
+        yield from self.go([*self.tcp[:2], HOVER_Z], speed=0.5, tolerance=0.005)
+        rotation = self.hand_rotation()
+        back = self.tcp[:2] - RETREAT * rotation[:2, 0] / np.linalg.norm(rotation[:2, 0])
+        yield from self.go([*back, TRAVEL_Z], OPEN, tolerance=0.005)

@@ -1,0 +1,197 @@
+"""Doing to the robot's block what a demonstration did to the person's: from an action and its effect
+to the hand skills of :mod:`~hoap_actions.policies.block_skills`.
+
+:class:`BlockImitation` is the part every imitation policy shares: given what was shown (an
+:class:`Intent`: the action, and for a push, move or rotate the block's displacement on the robot's
+table and its turn), it looks at its own block with the overhead camera, sets the target (its own start
+moved and turned by the effect: the same at both of ``Imitate-v0``'s levels) and runs the skills:
+
+- approach: the hand over the block, held there;
+- move: the block grasped, carried and set down at the target (:meth:`BlockHand.place`);
+- push, rotate, and a move whose set-down left it off: a thumb push along the line through the target
+  that leaves the block turned as the target (:meth:`BlockHand.push`), the block first carried behind
+  the target on that line when it is not there (or too close to it to turn on the way).
+
+It then looks again and, while the episode lasts, tries once more from where the block is.
+Subclasses say where the intent comes from: :class:`ExecutionCeiling` takes the true one from the env
+(the oracle), so what it misses is what execution misses.
+"""
+
+from __future__ import annotations
+
+import logging
+from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from hoap_actions.envs import world
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.block_skills import PUSH_STANDOFF, BlockHand, wrap_quarter
+
+__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "ExecutionCeiling", "Intent", "intent_of"]
+
+logger = logging.getLogger(__name__)
+
+ACTIONS = ("approach", "move", "push", "rotate")
+MAX_ATTEMPTS = 3  # tries at the block's target within one episode (each after a fresh look)
+ON_LINE = 0.003  # m, a block this near the push's line through the target is pushed from where it is
+TURNED = np.radians(5.0)  # rad, a block turned this near its target needs no run-up to turn on the way
+
+
+@dataclass(frozen=True)
+class Intent:
+    """What a demonstration did, on the robot's table: the ``action`` (one of :data:`ACTIONS`), the block's
+    ``displacement`` (2,) (m, robot table) and its ``turn`` about the vertical (rad)."""
+
+    action: str
+    displacement: np.ndarray
+    turn: float
+
+    def __post_init__(self) -> None:
+        if self.action not in ACTIONS:
+            raise InvalidInputError(f"action {self.action!r} is not one the robot imitates; accepted: {list(ACTIONS)}")
+
+
+def _yaw(rotation_vector: np.ndarray) -> float:
+    return float(Rotation.from_rotvec(rotation_vector).as_euler("zyx")[0])
+
+
+def intent_of(action: str, human_start: np.ndarray, human_end: np.ndarray) -> Intent:
+    """The :class:`Intent` of a demonstration whose block went from ``human_start`` to ``human_end`` (6,:
+    centre m and rotation vector rad, the person's table): the displacement mapped to the robot's table
+    by the project's one human-to-robot scale, the turn as it was."""
+    start, end = np.asarray(human_start, float), np.asarray(human_end, float)
+    if action == "approach":
+        return Intent(action, np.zeros(2), 0.0)
+    turn = float(np.angle(np.exp(1j * (_yaw(end[3:]) - _yaw(start[3:])))))
+    return Intent(action, world.HUMAN_TO_ROBOT_SCALE * (end[:2] - start[:2]), turn)
+
+
+class BlockImitation(ABC):
+    """``obs -> action`` on ``hoap_actions/Imitate-v0`` (``control_mode="ee_delta"``, the
+    :class:`~hoap_actions.apps.episodes.Policy` protocol): the skills for an :class:`Intent` (module
+    docstring). Subclasses give the intent (:meth:`intent`)."""
+
+    control_mode = "ee_delta"
+    env_ids = ("hoap_actions/Imitate-v0",)
+    failure: str | None
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        spec_id = getattr(env.spec, "id", None)
+        if spec_id not in self.env_ids:
+            raise InvalidInputError(f"{type(self).__name__} imitates a demonstration on its block; it needs one of "
+                                    f"{list(self.env_ids)}, not {spec_id or type(env).__name__}")
+        control_mode = env.get_wrapper_attr("control_mode")
+        if control_mode != self.control_mode:
+            raise InvalidInputError(f"{type(self).__name__} needs control_mode='ee_delta'; this env uses "
+                                    f"{control_mode!r}")
+        self.env = env
+        self.hand = BlockHand(env)
+        self.failure = None
+        self.finished = False
+        self.program: Iterator[np.ndarray] | None = None
+        self.skills: list[str] = []
+
+    @abstractmethod
+    def intent(self) -> Intent | None:
+        """What this episode's demonstration did, or None when it cannot be told (then :attr:`failure`
+        says why)."""
+
+    @property
+    def done(self) -> bool:
+        """True once every attempt has run (the block did not reach its target)."""
+        return self.finished and self.failure is None
+
+    def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        self.hand.start(obs)
+        self.failure, self.finished, self.skills = None, False, []
+        self.shown = self.intent()
+        self.start_block = self.hand.look()
+        if self.shown is None:
+            self.failure = self.failure or "not recognised"
+        elif self.start_block is None:
+            self.failure = "block not seen"
+        self.program = self._program() if self.failure is None else None
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        self.hand.observe(obs)
+        if self.program is not None:
+            try:
+                return next(self.program)
+            except StopIteration:
+                self.program, self.finished = None, True
+        return np.array([0.0, 0.0, 0.0, self.hand.grip], dtype=np.float32)
+
+    def _program(self) -> Iterator[np.ndarray]:
+        shown, block = self.shown, self.start_block
+        if shown.action == "approach":
+            self.skills.append("approach")
+            yield from self.hand.approach(block.xy)
+            return
+        target = block.xy + shown.displacement
+        yaw = block.yaw + shown.turn
+        face = self.hand.push_face(target, yaw)
+        if shown.action == "move":
+            self.skills.append("place")
+            yield from self.hand.place(block, target)
+        for _ in range(MAX_ATTEMPTS):
+            block = self.hand.look()
+            if block is None:
+                self.failure = "block not seen"
+                return
+            plan = self.hand.plan_push(block, target, face)
+            offset = target - block.xy
+            logger.debug("block at %s turned %.1f deg; target %s turned %.1f deg (face %.1f, thumb %.1f deg)",
+                         np.round(block.xy, 4), np.degrees(block.yaw), np.round(target, 4), np.degrees(yaw),
+                         np.degrees(face), np.degrees(plan.thumb))
+            ahead, aside = float(offset @ plan.direction), float(offset @ np.array([-plan.direction[1],
+                                                                                      plan.direction[0]]))
+            run_up = 0.0 if abs(wrap_quarter(block.yaw - face)) < TURNED else PUSH_STANDOFF
+            if abs(aside) > ON_LINE or ahead < run_up:
+                self.skills.append("place")
+                yield from self.hand.place(block, target - PUSH_STANDOFF * plan.direction)
+                block = self.hand.look()
+                if block is None:
+                    self.failure = "block not seen"
+                    return
+                plan = self.hand.plan_push(block, target, face)
+            self.skills.append("push")
+            yield from self.hand.push(plan, target)
+
+
+class ExecutionCeiling(BlockImitation):
+    """The execution ceiling of ``Imitate-v0``: the true action and effect of the demonstration, from the
+    env's privileged accessor (``true_demonstration``, an oracle no imitating policy may call), done by
+    the block skills. What it misses is lost in execution alone."""
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        super().__init__(env)
+        self._truth = env.get_wrapper_attr("true_demonstration")
+
+    def intent(self) -> Intent:
+        shown = self._truth()
+        return intent_of(shown.action, shown.object_start, shown.object_end)
+
+
+class DoNothing:
+    """The floor of ``Imitate-v0``: the robot does nothing. Its episode ends at once (it is ``done`` from the
+    reset on), scored on the world as reset: no block is at its target, no hand over its block."""
+
+    failure: str | None = None
+    done = True
+    control_mode = "ee_delta"
+    env_ids = ("hoap_actions/Imitate-v0",)
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        del env  # it reads nothing
+
+    def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        """Nothing to reset."""
+
+    def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        return np.zeros(4, dtype=np.float32)

@@ -1,0 +1,168 @@
+"""The robot's block skills and the execution-ceiling policy on ``Imitate-v0``: each skill on a fixed
+validation episode of its action, the policy's checks of its env, determinism, the block's location by
+colour and the skills' geometry."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.apps.episodes import run_episode
+from hoap_actions.envs import world
+from hoap_actions.errors import InvalidInputError, ResetNeededError
+from hoap_actions.imitation.imitate_env import BLOCK_SIZE
+from hoap_actions.policies.block_skills import (
+    HALF,
+    PUSH_ALONG,
+    BlockHand,
+    closure_for,
+    thumb_angle,
+    wrap_quarter,
+)
+from hoap_actions.policies.grasp import thumb_outline
+from hoap_actions.policies.imitation_policy import DoNothing, ExecutionCeiling, Intent, intent_of
+from hoap_actions.policies.registry import policy_class
+from hoap_actions.vision.block import locate_block
+
+ENV_ID = "hoap_actions/Imitate-v0"
+SEEDS = {"approach": 90003, "push": 90014, "move": 90006, "rotate": 90008}  # validation episodes, one per action
+
+
+@pytest.fixture(scope="module")
+def env():
+    env = gymnasium.make(ENV_ID, robot="fixed_legs", control_mode="ee_delta", demo_image_size=(80, 60))
+    yield env
+    env.close()
+
+
+def _yaw(quaternion: np.ndarray) -> float:
+    return float(Rotation.from_quat(quaternion).as_euler("zyx")[0])
+
+
+# ------------------------------------------------------------------ each skill, on an episode of its action
+@pytest.mark.parametrize("action", ["approach", "push"])
+def test_the_oracle_imitates_a_short_episode_of_each_action(env, action):
+    policy = ExecutionCeiling(env)
+    result = run_episode(env, policy, SEEDS[action])
+    assert env.get_wrapper_attr("true_demonstration")().action == action
+    assert result.success, result
+    assert policy.skills == [action]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("action, skills", [("move", {"place", "push"}), ("rotate", {"place", "push"})])
+def test_the_oracle_imitates_a_move_and_a_rotate(env, action, skills):
+    policy = ExecutionCeiling(env)
+    result = run_episode(env, policy, SEEDS[action])
+    assert env.get_wrapper_attr("true_demonstration")().action == action
+    assert result.success, result
+    assert set(policy.skills) <= skills and "place" in policy.skills
+
+
+def test_same_seed_same_episode(env):
+    runs = []
+    for _ in range(2):
+        policy = ExecutionCeiling(env)
+        obs, info = env.reset(seed=SEEDS["push"])
+        policy.reset(obs, info)
+        actions = []
+        for _ in range(40):
+            action = policy(obs)
+            actions.append(action)
+            obs, *_ = env.step(action)
+        runs.append((np.array(actions), obs["observation"].copy()))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+
+
+# ------------------------------------------------------------------ what the policies accept
+def test_the_oracle_refuses_other_envs_and_control_modes():
+    peg = gymnasium.make("hoap_actions/PegInsert-v0", control_mode="ee_delta", robot="fixed_legs")
+    with pytest.raises(InvalidInputError, match="Imitate-v0"):
+        ExecutionCeiling(peg)
+    peg.close()
+    joint = gymnasium.make(ENV_ID, robot="fixed_legs")
+    with pytest.raises(InvalidInputError, match="ee_delta"):
+        ExecutionCeiling(joint)
+    joint.close()
+    with pytest.raises(InvalidInputError, match="does not act in hoap_actions/PegInsert-v0"):
+        policy_class("imitation-oracle", "hoap_actions/PegInsert-v0")
+    assert policy_class("imitation-oracle", ENV_ID) is ExecutionCeiling
+    assert policy_class("nothing", ENV_ID) is DoNothing
+
+
+def test_the_oracle_accessor_needs_a_reset():
+    fresh = gymnasium.make(ENV_ID, robot="fixed_legs", control_mode="ee_delta")
+    with pytest.raises(ResetNeededError):
+        fresh.get_wrapper_attr("true_demonstration")()
+    fresh.close()
+
+
+def test_doing_nothing_ends_at_once_without_success(env):
+    result = run_episode(env, DoNothing(env), SEEDS["push"])
+    assert (result.success, result.reason, result.steps) == (False, "finished without success", 0)
+
+
+def test_an_unknown_action_is_refused():
+    with pytest.raises(InvalidInputError, match="accepted"):
+        Intent("wave", np.zeros(2), 0.0)
+
+
+# ------------------------------------------------------------------ maths and geometry
+def test_the_intent_is_the_effect_mapped_to_the_robot_table():
+    start = np.array([0.1, -0.2, 0.025, 0.0, 0.0, 0.1])
+    end = np.array([0.2, -0.2, 0.025, 0.0, 0.0, 0.1 + np.pi / 3])
+    intent = intent_of("rotate", start, end)
+    np.testing.assert_allclose(intent.displacement, [world.HUMAN_TO_ROBOT_SCALE * 0.1, 0.0], atol=1e-12)
+    assert intent.turn == pytest.approx(np.pi / 3)
+    approach = intent_of("approach", start, end)
+    assert np.all(approach.displacement == 0.0) and approach.turn == 0.0
+
+
+def test_thumb_angle_and_closure_are_inverse_and_parallel_at_contact():
+    for closure in np.linspace(0.0, 1.0, 11):
+        assert closure_for(thumb_angle(closure)) == pytest.approx(closure)
+    assert thumb_angle(0.75) == 0.0 and closure_for(np.radians(-80.0)) == 0.0
+    outline = thumb_outline(0.75)  # parallel with the palm: its outer edge runs along the hand's x
+    assert outline[0, 1] == pytest.approx(outline[1, 1])
+
+
+def test_wrap_quarter_is_a_cube_turn():
+    for angle in (-2.0, -0.5, 0.0, 0.3, 1.2, 4.0):
+        wrapped = wrap_quarter(angle)
+        assert -np.pi / 4 <= wrapped < np.pi / 4
+        assert np.sin(4 * wrapped) == pytest.approx(np.sin(4 * angle))
+
+
+def test_the_thumb_stands_the_gap_off_the_block():
+    heading, thumb, gap = np.radians(20.0), np.radians(-15.0), 0.004
+    block = np.array([0.01, 0.03])
+    tcp = BlockHand.tcp_for_contact(block, heading, thumb, gap)
+    outline = thumb_outline(closure_for(thumb))
+    c, s = np.cos(heading), np.sin(heading)
+    face = tcp + outline[:2] @ np.array([[c, s], [-s, c]])  # the outer face's ends in the world
+    along = (face[1] - face[0]) / np.linalg.norm(face[1] - face[0])
+    normal = np.array([along[1], -along[0]])
+    assert float((block - face[0]) @ normal) == pytest.approx(HALF + gap)
+    assert float((block - face[0]) @ along) == pytest.approx(PUSH_ALONG)
+    assert np.arctan2(along[1], along[0]) == pytest.approx(heading + thumb)
+
+
+def test_the_block_is_located_by_colour_within_a_millimetre_and_4_degrees(env):
+    capture = env.get_wrapper_attr("capture")
+    parse = env.get_wrapper_attr("parse_observation")
+    for seed in (90000, 90001, 90002):
+        obs, _ = env.reset(seed=seed)
+        truth = parse(obs)
+        view = capture("overhead", 320, 240)
+        found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE)
+        assert found is not None and found.whole
+        assert np.linalg.norm(found.position_m - truth["block_position"]) < 0.001
+        assert abs(wrap_quarter(found.yaw_rad - _yaw(truth["block_quaternion"]))) < np.radians(4.0)
+    blank = np.zeros_like(view.rgb)
+    assert locate_block(blank, view.depth, view.camera) is None
+    with pytest.raises(InvalidInputError, match="rgb"):
+        locate_block(view.rgb[:10], view.depth, view.camera)
