@@ -269,6 +269,7 @@ def _track(args: argparse.Namespace) -> int:
         raise InvalidInputError("--grid-model trains its own approach model on the recording's 3 x 3 grid and tracks "
                                 "its one camera; leave out --models, --posture, --from-markers, --side-camera, "
                                 "--clutter and --noise")
+    args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "offsets")
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
                    for name, path in (("report", args.json), ("video", args.video), ("figure", args.figure)) if path}
@@ -484,10 +485,11 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--from-markers", action="store_true",
                        help="track from the recording's markers and block instead of the camera's images "
                             "(recognition from motion capture)")
-    track.add_argument("--pose-proposal", choices=["offsets", "hand"], default="offsets",
-                       help="how particles pose the arm: offsets of every marker from the PHMM's mean (default), or "
-                            "the hand shifted and the shoulder and elbow generated from it (with --posture, by that "
-                            "posture model)")
+    track.add_argument("--pose-proposal", choices=["offsets", "hand"],
+                       help="how particles pose the arm: offsets of every marker from the PHMM's mean, or the hand "
+                            "shifted and the shoulder and elbow generated from it (with --posture, by that posture "
+                            "model); default: offsets, and hand with --grid-model (each won on its validation "
+                            "recording)")
     track.add_argument("--posture", type=_path,
                        help="a posture model file (PostureModel JSON) that poses the shoulder and elbow from the hand "
                             "(--pose-proposal hand)")

@@ -191,11 +191,12 @@ class ReachTrack:
 
 
 def track_grid_reach(models: TrackingModels, demos: Demonstrations, reach: GridReach, rendered: RenderedFrames,
-                     particles: int = 400, seed: int = 0, pose_proposal: str = "offsets", silhouette: bool = True,
+                     particles: int = 400, seed: int = 0, pose_proposal: str = "hand", silhouette: bool = True,
                      object_cue: bool = True, keep_images: bool = False) -> ReachTrack:
     """Track ``reach`` of ``demos`` on its ``rendered`` frames (:func:`~hoap_actions.tracking.episode.render_frames`
     of frames ``range(reach.end)``) with ``models`` (e.g. :func:`grid_tracking_models`); cues and pose proposal
-    as for :func:`~hoap_actions.tracking.episode.track_episode`."""
+    as for :func:`~hoap_actions.tracking.episode.track_episode` (here poses generated from the hand by default:
+    they won on the experiment's validation recording, docs/experiments/tracking.md)."""
     if len(rendered.images) != reach.end:
         raise InvalidInputError(f"rendered holds {len(rendered.images)} frames; the reach has {reach.end}")
     truth = demos[reach.episode].H[:reach.end]

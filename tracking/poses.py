@@ -13,8 +13,9 @@ learned spread:
   :class:`~hoap_actions.primitives.hmm.posture.PostureModel` when the models carry one, otherwise by the
   state's Gaussian conditioned on the hand (its full covariance's regression of shoulder and elbow on a
   shift of the hand; with diagonal covariances, the state's mean); then the elbow turns about the
-  shoulder-wrist line by a persistent swivel angle: four numbers a particle. How a person holds the
-  elbow for a given hand varies; where the hand goes is what the image and the effect say.
+  shoulder-wrist line by a persistent swivel angle, and the shoulder and elbow shift together by a
+  persistent trunk shift: seven numbers a particle. How a person holds the elbow and leans for a given
+  hand varies; where the hand goes is what the image and the effect say.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import numpy as np
 
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.primitives.hmm.posture import MIN_POINTING_M
 from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.tracking.tracking_models import TrackingModels
 
@@ -32,6 +34,7 @@ __all__ = ["POSE_PROPOSALS", "HandPoses", "OffsetPoses", "PoseProposal", "mean_p
 
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose state
 SWIVEL_SD_RAD = 0.1  # rad, stationary sd of the elbow's turn about the shoulder-wrist line (validation)
+TRUNK = True  # shoulder and elbow shift together as well (validation)
 ARM = slice(0, 6)  # shoulder and elbow, xyz each, in the recordings' marker order
 HAND = slice(6, 18)  # wrist, index tip, index knuckle, thumb tip
 HAND_MARKERS = 4
@@ -110,16 +113,17 @@ class OffsetPoses:
 
 
 class HandPoses:
-    """The hand from the PHMM and a persistent shift; shoulder and elbow from the hand; a swivel of the elbow.
+    """The hand from the PHMM and a persistent shift; shoulder and elbow from the hand; a swivel of the elbow;
+    with ``trunk``, a shift of the shoulder and elbow together (the trunk leaning).
 
-    The pose state is ``(shift x, y, z (m), swivel (rad))``. The shift drifts within the state's learned
-    spread of the wrist, the swivel within ``swivel_sd`` (rad).
+    The pose state is ``(hand shift x, y, z (m), swivel (rad)[, trunk shift x, y, z (m)])``. The hand shift
+    drifts within the state's learned spread of the wrist, the swivel within ``swivel_sd`` (rad), the trunk
+    shift within the state's spread of the shoulder given the hand (full covariances; else the shoulder's).
     """
 
     name = "hand"
-    dim = 4
 
-    def __init__(self, models: TrackingModels, swivel_sd: float = SWIVEL_SD_RAD) -> None:
+    def __init__(self, models: TrackingModels, swivel_sd: float = SWIVEL_SD_RAD, trunk: bool = TRUNK) -> None:
         if tuple(models.marker_names) != MARKER_NAMES:
             raise InvalidInputError(f"poses generated from the hand need the markers {list(MARKER_NAMES)}; these "
                                     f"models have {list(models.marker_names)}")
@@ -127,10 +131,12 @@ class HandPoses:
             raise InvalidInputError(f"swivel_sd must be >= 0 (rad); got {swivel_sd!r}")
         self._classes = models.classes
         self.posture = models.posture
-        self.swivel_sd = float(swivel_sd)
+        self.swivel_sd, self.trunk = float(swivel_sd), bool(trunk)
+        self.dim = 7 if self.trunk else 4
         width = 3 * len(MARKER_NAMES)
         self._sd = {cid: np.hstack([np.sqrt(_position_variances(model, width)[:, HAND.start:HAND.start + 3]),
-                                    np.full((model.phmm.n_states, 1), self.swivel_sd)])
+                                    np.full((model.phmm.n_states, 1), self.swivel_sd),
+                                    *([_shoulder_given_hand_sd(model)] if self.trunk else [])])
                     for cid, model in models.classes.items()}
         self._gain = {cid: _arm_gain(model) for cid, model in models.classes.items()}
 
@@ -144,9 +150,14 @@ class HandPoses:
         shift = pose_state[:, :3]
         pose[:, HAND] += np.tile(shift, HAND_MARKERS)
         if self.posture is not None:
-            pose[:, ARM] = self.posture.predict(pose)
+            wrist = pose[:, 6:9]
+            pointing = [np.linalg.norm(pose[:, k:k + 3] - wrist, axis=1) for k in (12, 15)]  # knuckle, thumb
+            posed = np.minimum(*pointing) >= MIN_POINTING_M  # a hand with no pointing direction keeps the mean arm
+            pose[posed, ARM] = self.posture.predict(pose[posed]) if posed.any() else pose[posed, ARM]
         else:
             pose[:, ARM] += np.einsum("nij,nj->ni", self._gain[class_id][states.astype(int)], shift)
+        if self.trunk:
+            pose[:, ARM] += np.tile(pose_state[:, 4:7], 2)
         pose[:, 3:6] = _swivel(pose[:, 0:3], pose[:, 3:6], pose[:, 6:9], pose_state[:, 3])
         return pose
 
@@ -163,6 +174,17 @@ def _arm_gain(model: ClassModel) -> np.ndarray:
     hand_arm = covars[:, HAND, ARM]
     regression = np.linalg.solve(hand_hand, hand_arm).transpose(0, 2, 1)  # (K, 6, 12): arm on hand
     return regression.reshape(k, 6, HAND_MARKERS, 3).sum(axis=2)
+
+
+def _shoulder_given_hand_sd(model: ClassModel) -> np.ndarray:
+    """``(K, 3)``: per state, the shoulder's standard deviation given the hand (the full covariance's Schur
+    complement; with diagonal covariances, the shoulder's own)."""
+    covars = model.phmm.covars_
+    if model.phmm.covariance_type != "full":
+        return np.sqrt(covars[:, 0:3])
+    hand_hand, hand_shoulder = covars[:, HAND, HAND], covars[:, HAND, 0:3]
+    given = covars[:, 0:3, 0:3] - np.einsum("kha,khb->kab", hand_shoulder, np.linalg.solve(hand_hand, hand_shoulder))
+    return np.sqrt(np.maximum(np.diagonal(given, axis1=1, axis2=2), 0.0))
 
 
 def _swivel(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angle: np.ndarray) -> np.ndarray:
