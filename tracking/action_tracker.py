@@ -351,7 +351,8 @@ class ActionTracker:
             if np.shape(image) != (camera.height, camera.width):
                 raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
                                         f"got {np.shape(image)}")
-            if not (np.all(np.isfinite(image)) and np.min(image) >= 0.0 and np.max(image) <= 1.0):
+            low, high = np.min(image), np.max(image)  # a NaN makes both NaN: the comparisons then fail
+            if not (low >= 0.0 and high <= 1.0):
                 raise InvalidInputError(f"a {what} must hold finite values in [0, 1]")
         return images
 

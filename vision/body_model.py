@@ -8,6 +8,7 @@ is sampled there for every body of a batch at once (numpy, no rendering).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -106,6 +107,7 @@ class BodyModel:
         self.points_per_side = int(points_per_side)
         self._radius = np.array([c.radius for c in capsules])
         self.hidden_below_z = hidden_below_z
+        self._cameras: dict = {}
         trunk_points = {"torso_base", *FROM_SHOULDER}
         self.trunk = np.array([k for k, c in enumerate(capsules) if {c.start, c.end} <= trunk_points], dtype=int)
         """Indices of the capsules placed from the trunk alone (torso, head)."""
@@ -131,13 +133,38 @@ class BodyModel:
         n = markers.shape[0]
         starts = np.stack([self._point(c.start, markers) for c in self.capsules], axis=1)  # (N, C, 3)
         ends = np.stack([self._point(c.end, markers) for c in self.capsules], axis=1)
-        side = camera.view_matrix()[0, :3]  # the camera's right axis in the world: a radius across the view
+        side, project = self._camera(camera)
         radius = self._radius[None, :, None]
         points = np.concatenate([starts, ends, starts + radius * side, ends + radius * side], axis=1)
-        pixels = camera.project(points.reshape(-1, 3)).reshape(n, 4, len(self.capsules), 2)
+        pixels = project(points.reshape(-1, 3)).reshape(n, 4, len(self.capsules), 2)
         a, b = pixels[:, 0], pixels[:, 1]
         return ProjectedBodies(a, b, np.linalg.norm(pixels[:, 2] - a, axis=2), np.linalg.norm(pixels[:, 3] - b, axis=2),
                                starts[..., 2], ends[..., 2])
+
+    def _camera(self, camera: Projector) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """``camera``'s right axis in the world (a radius across the view) and its projection, the matrices
+        made once per camera (a tracker projects every particle in every frame): the same arithmetic as
+        :meth:`Camera.project`. Projectors without ``projection_matrix`` project themselves."""
+        try:
+            return self._cameras[camera]
+        except (KeyError, TypeError):  # TypeError: an unhashable projector, never cached
+            pass
+        view = camera.view_matrix()
+        if not hasattr(camera, "projection_matrix"):
+            return view[0, :3], camera.project
+        matrix = (camera.projection_matrix() @ view).T
+        width, height = camera.width, camera.height
+
+        def project(points: np.ndarray) -> np.ndarray:
+            homogeneous = np.c_[points, np.ones(len(points))] @ matrix
+            ndc = homogeneous[:, :2] / homogeneous[:, 3:4]
+            return np.c_[(ndc[:, 0] + 1.0) * 0.5 * width, (1.0 - ndc[:, 1]) * 0.5 * height]
+
+        try:
+            self._cameras[camera] = (view[0, :3], project)
+        except TypeError:
+            pass
+        return view[0, :3], project
 
     def _hide(self, pixels: np.ndarray, z: np.ndarray) -> np.ndarray:
         """``pixels`` (..., 2) with the points whose height ``z`` (...) is below :attr:`hidden_below_z` set to NaN."""
