@@ -41,14 +41,14 @@ from hoap_actions.policies.execution import MOVE_STEPS, REACH_TOLERANCE, REFEREN
 from hoap_actions.policies.grasp import THUMB_CONTACT_CLOSURE, THUMB_RANGE, thumb_outline
 from hoap_actions.vision.block import BlockDetection, locate_block
 
-__all__ = ["BlockHand", "BlockPose", "closure_for", "thumb_angle"]
+__all__ = ["BlockHand", "BlockPose", "PushPlan", "closure_for", "run_up", "thumb_angle", "wrap_quarter"]
 
 logger = logging.getLogger(__name__)
 
 CAMERA = "overhead"
 LOOK_SIZE = (320, 240)  # px, a look with the hand away: 0.3 mm on the block's centre, 3 degrees on its turn
 SERVO_LOOK_SIZE = (160, 120)  # px, the looks during a push: a quarter of the rendering cost
-MIN_HELD_PIXELS = 100  # top-face pixels (at LOOK_SIZE) of a held block seen well enough to say where it sits
+MIN_HELD_PIXELS = 100  # top-face pixels (at LOOK_SIZE) of a grasped block seen well enough to say where it sits
 SERVO_LOOK_STEPS = 3  # env steps between looks during a push
 HALF = BLOCK_SIZE / 2.0
 TRAVEL_Z = 0.075  # m, tcp height between skills: the palm (2 cm below the tcp) clears the 5 cm pegs by 0.5 cm
@@ -56,12 +56,13 @@ RETREAT = 0.045  # m, how far back along the forearm the hand goes for the camer
 HOVER_Z = 0.05  # m, tcp height over the block: the palm 1 cm over its top
 PUSH_Z = 0.026  # m, tcp height while the thumb pushes: its plate (tcp +- 1.5 cm) covers the cube's upper half
 GRASP_Z = 0.024  # m, tcp height of a grasp: the palm's lower edge just over the table (the hand leans ~10 deg)
-CARRY_LIFT = 0.012  # m, how far a grasped block is lifted to be carried
 OPEN = 0.25  # closure of a hand coming down over the block: the thumb 30 deg open, a 29 mm gap at the block
-LET_GO = 0.5  # closure that lets go of the set-down cube: the thumb just off it (wider drags it along as it swings)
-SQUEEZE = 0.7  # closure that holds the cube: the thumb meets a 20 mm cube at about 0.6
+LET_GO = 0.35  # closure that lets go of the set-down cube (at 0.5 the thumb still held it: lifted with the hand)
+SQUEEZE = 0.64  # closure that holds the cube: the thumb meets a 20 mm cube at about 0.6
 PALM_INNER_V = 0.0075  # m, the palm's inner face off the tcp, thumb-wards negative (grasp.PALM)
 PALM_GAP = 0.0035  # m, gap left between the palm and the block while coming down
+PALM_PUSH = 0.004  # m, how far the palm slides past touching the block: a cube turned 30 deg to it sticks out 3.7 mm
+GRASP_MISALIGNED = np.radians(8.0)  # rad, a block turned more than this counter-clockwise to the palm is turned first
 SQUEEZE_STEPS = 10  # steps (0.33 s) for the thumb to close on the block
 RELEASE_STEPS = 8  # steps for the thumb to open off the set-down block
 PUSH_SPEED = 0.3  # of the hand's speed limit while pushing: 4.5 cm/s
@@ -70,7 +71,9 @@ PUSH_GAP = 0.004  # m, gap between the thumb and the block before the push
 PUSH_ALONG = 0.03  # m, where along the thumb's outer face (from its back end) it meets the block
 PUSH_OVERSHOOT = 0.004  # m, a push ends once the block is this far past its target along the push
 MAX_PUSH = 0.08  # m, the longest push
-PUSH_STANDOFF = 0.015  # m, how far behind its target a block is placed for a push that must also turn it
+RUN_UP = 0.012  # m, how far behind its target a block is placed for a push that must also turn it ...
+RUN_UP_PER_RADIAN = 0.03  # m, ... and this much further per radian it must turn (0.5 mm a degree) ...
+MAX_RUN_UP = 0.035  # m, ... up to this
 LATERAL_GAIN = 0.7  # of the block's lateral error the hand moves per look: the thumb holds the block by friction
 THUMB_LOW = -THUMB_CONTACT_CLOSURE * THUMB_RANGE  # rad, the thumb's angle to the palm fully open (closure 0)
 THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (closure 1)
@@ -90,6 +93,12 @@ def closure_for(angle: float) -> float:
 def wrap_quarter(angle: float) -> float:
     """An angle (rad) modulo a quarter turn, in [-pi/4, pi/4): a cube's turn as it looks."""
     return float((angle + np.pi / 4) % (np.pi / 2) - np.pi / 4)
+
+
+def run_up(turn: float) -> float:
+    """How far (m) behind its target a block is placed for a push that must turn it by ``turn`` (rad) on
+    the way: a pushed cube turns to the face gradually, so a larger turn needs a longer push."""
+    return float(min(RUN_UP + RUN_UP_PER_RADIAN * abs(turn), MAX_RUN_UP))
 
 
 def _unit(angle: float) -> np.ndarray:
@@ -172,12 +181,11 @@ class BlockHand:
         """The hand's measured speed (m/s)."""
         return float(np.linalg.norm(self.tcp - self.previous_tcp) * self._fps)
 
-    def look(self, size: tuple[int, int] = LOOK_SIZE, resting: bool = True) -> BlockPose | None:
-        """The block as the overhead camera sees it now (on the table, or held: ``resting=False``), or
-        None when it does not."""
+    def look(self, size: tuple[int, int] = LOOK_SIZE) -> BlockPose | None:
+        """The block as the overhead camera sees it now, or None when it does not."""
         view = self._capture(CAMERA, *size)
         self.looks += 1
-        found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE, resting)
+        found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE)
         self.seen = found
         return None if found is None else BlockPose.from_detection(found)
 
@@ -241,36 +249,59 @@ class BlockHand:
         yield from self.hold(int(self._fps))  # held there: the hand settles on the point
 
     def place(self, block: BlockPose, target_xy: np.ndarray) -> Iterator[np.ndarray]:
-        """Grasp the block, carry it low over the table, set it down with its centre at ``target_xy``
-        (2,), let go and rise. The grasp lays a face of the block on the palm, so it arrives turned as
-        the hand is headed there."""
+        """Grasp the block and slide it over the table to ``target_xy`` (2,), let go and back away.
+
+        The hand comes down beside the block with the thumb open, slides until the palm touches it and
+        squeezes. The lowest the hand gets (the palm's lower edge on the table, the hand leaning ~10
+        degrees) leaves the tcp 1.4 cm over the block's centre, so the thumb (3 cm tall) holds only the
+        cube's upper edge: a block lifted 4 mm in it pivoted out of the hand, so it is slid, not lifted,
+        and keeps its turn on the way within a few degrees. Where it sits in the hand is looked at after
+        the squeeze (which moves it), and the tcp's end is where that puts the block over the target
+        (the hand's heading there asked of the IK model)."""
         heading = self.heading_at(np.array([*block.xy, GRASP_Z]))
+        if wrap_quarter(block.yaw - heading) > GRASP_MISALIGNED:
+            yield from self.align(block)
+            seen = self.look()
+            if seen is None:
+                return
+            block = seen
+            heading = self.heading_at(np.array([*block.xy, GRASP_Z]))
         y_axis = _unit(heading + np.pi / 2)  # from the thumb to the palm
         over = block.xy - (PALM_INNER_V - PALM_GAP - HALF) * y_axis  # the block thumb-wards, a gap off the palm
         yield from self.travel(np.array([*over, HOVER_Z]), OPEN)
         yield from self.go([*over, GRASP_Z], OPEN, speed=0.5)
-        touch = block.xy - (PALM_INNER_V - HALF) * y_axis
+        touch = block.xy - (PALM_INNER_V - HALF + PALM_PUSH) * y_axis  # the palm a few mm into it: lays it flat
         yield from self.go([*touch, GRASP_Z], speed=0.2, tolerance=0.001)
         yield from self.hold(SQUEEZE_STEPS, SQUEEZE)
-        in_hand = self.hand_rotation().T @ np.array([*(block.xy - self.tcp[:2]), HALF - self.tcp[2]])
-        yield from self.go([*self.tcp[:2], GRASP_Z + CARRY_LIFT], speed=0.5, tolerance=0.003)
-        held = self.look(resting=False)  # the squeeze may have shifted it: where it sits in the hand now
-        if held is not None and self.seen.top_pixels >= MIN_HELD_PIXELS:
-            rotation = self.hand_rotation()
-            in_hand = rotation.T @ np.array([*(held.xy - self.tcp[:2]), (rotation @ in_hand)[2]])
-        # where the tcp puts the held block's centre over the target: the hand turns on the way, so
-        # the IK model is asked how it is headed there (twice: the tcp moves with the answer)
-        end = np.array([*target_xy, GRASP_Z + CARRY_LIFT])
-        for _ in range(2):
+        rotation = self.hand_rotation()
+        held = self.look()
+        if held is None:  # its top face is not at a resting cube's height: wedged up in the hand, let it drop
+            yield from self.hold(RELEASE_STEPS, 0.0)
+            yield from self.retreat()
+            return
+        held_xy = held.xy if self.seen.top_pixels >= MIN_HELD_PIXELS else block.xy
+        in_hand = rotation.T @ np.array([*(held_xy - self.tcp[:2]), HALF - self.tcp[2]])
+        end = np.array([*target_xy, GRASP_Z])
+        for _ in range(2):  # the hand turns on the way: its heading at the end, then the end again
             f = self.fields
             self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
-            offset = self.ik.probe(end).rotation @ in_hand
-            end = np.array([*(target_xy - offset[:2]), GRASP_Z + CARRY_LIFT])
-        logger.debug("place: in hand %s, tcp %s, end %s", np.round(in_hand, 4), np.round(self.tcp, 4), np.round(end, 4))
+            end[:2] = target_xy - (self.ik.probe(end).rotation @ in_hand)[:2]
         yield from self.go(end, speed=0.5)
-        yield from self.go([*end[:2], GRASP_Z + 0.001], speed=0.3, tolerance=0.003)
         yield from self.hold(RELEASE_STEPS, LET_GO)
         yield from self.retreat()
+
+    def align(self, block: BlockPose) -> Iterator[np.ndarray]:
+        """Turn the block with a thumb push to the heading the hand will have when it grasps it, where the
+        push leaves it: a squeeze on a cube turned counter-clockwise to the palm by more than
+        :data:`GRASP_MISALIGNED` wedged it up between the thumb and the palm (the thumb reaches only its
+        upper edge); turned the other way, the closing thumb laid it flat on the palm (validation)."""
+        where = block.xy
+        for _ in range(2):  # the push moves the block, and the hand's heading over it with it
+            yaw = self.heading_at(np.array([*where, GRASP_Z]))
+            face = self.push_face(where, yaw)
+            turn = wrap_quarter(block.yaw - face)
+            where = block.xy + run_up(turn) * _unit(face - np.pi / 2)
+        yield from self.push(self.plan_push(block, where, face), where)
 
     def push_face(self, target_xy: np.ndarray, yaw: float) -> float:
         """The heading (rad, world) of the thumb's outer face that leaves the block at ``target_xy`` (2,)

@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.policies.block_skills import PUSH_STANDOFF, BlockHand, wrap_quarter
+from hoap_actions.policies.block_skills import BlockHand, run_up, wrap_quarter
 
 __all__ = ["ACTIONS", "BlockImitation", "DoNothing", "ExecutionCeiling", "Intent", "intent_of"]
 
@@ -151,10 +151,10 @@ class BlockImitation(ABC):
                          np.degrees(face), np.degrees(plan.thumb))
             ahead, aside = float(offset @ plan.direction), float(offset @ np.array([-plan.direction[1],
                                                                                       plan.direction[0]]))
-            run_up = 0.0 if abs(wrap_quarter(block.yaw - face)) < TURNED else PUSH_STANDOFF
-            if abs(aside) > ON_LINE or ahead < run_up:
+            turn = abs(wrap_quarter(block.yaw - face))
+            if abs(aside) > ON_LINE or ahead < (0.0 if turn < TURNED else run_up(turn)):
                 self.skills.append("place")
-                yield from self.hand.place(block, target - PUSH_STANDOFF * plan.direction)
+                yield from self.hand.place(block, target - run_up(turn) * plan.direction)
                 block = self.hand.look()
                 if block is None:
                     self.failure = "block not seen"

@@ -47,12 +47,11 @@ def _wrap_quarter(angle: float) -> float:
     return float((angle + np.pi / 4) % (np.pi / 2) - np.pi / 4)
 
 
-def locate_block(rgb: np.ndarray, depth: np.ndarray, camera: Camera, size: float = 0.02, resting: bool = True,
+def locate_block(rgb: np.ndarray, depth: np.ndarray, camera: Camera, size: float = 0.02,
                  hsv_range: tuple[tuple[int, int, int], tuple[int, int, int]] = BLOCK_HSV_RANGE
                  ) -> BlockDetection | None:
     """The block in an rgb (H, W, 3) uint8 and depth (H, W, m along the view axis) image of ``camera``,
-    a cube of edge ``size`` (m) resting on the table (z = 0), or held over it (``resting=False``: its
-    top face is then the highest yellow surface seen); None when no top face of it is seen."""
+    a cube of edge ``size`` (m) resting on the table (z = 0); None when no top face of it is seen."""
     if not isinstance(camera, Camera):
         raise InvalidInputError(f"camera must be a hoap_actions.envs.camera.Camera; got {type(camera).__name__}")
     shape = (camera.height, camera.width)
@@ -70,8 +69,7 @@ def locate_block(rgb: np.ndarray, depth: np.ndarray, camera: Camera, size: float
         return None
     su, sv = PIXEL_SAMPLE_UV  # where in a pixel the renderer samples (perception's measured convention)
     points = backproject(camera, u + su, v + sv, depth[v, u])
-    top_z = size if resting else float(np.percentile(points[:, 2], 95))
-    top = np.abs(points[:, 2] - top_z) <= TOP_TOLERANCE
+    top = np.abs(points[:, 2] - size) <= TOP_TOLERANCE
     if top.sum() < MIN_TOP_PIXELS:
         return None
     u, v = u[top], v[top]
@@ -86,10 +84,10 @@ def locate_block(rgb: np.ndarray, depth: np.ndarray, camera: Camera, size: float
     u, v = u[keep], v[keep]
     # each pixel's footprint on the face's plane: its sample point and its corners, so the rectangle spans the face
     corners = np.array([[0.0, 0.0], [-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5], [0.5, 0.5]]) + [su, sv]
-    on_face = rays_to_plane(camera, u[None] + corners[:, :1], v[None] + corners[:, 1:], top_z)  # (5, N, 3)
+    on_face = rays_to_plane(camera, u[None] + corners[:, :1], v[None] + corners[:, 1:], size)  # (5, N, 3)
     centre_xy = on_face[0, :, :2].mean(axis=0)
     (_, _), (width, height), angle = cv2.minAreaRect(on_face[1:, :, :2].reshape(-1, 2).astype(np.float32))
     yaw = _wrap_quarter(np.radians(angle))
     whole = bool(min(width, height) >= size - FACE_SIZE_TOLERANCE)  # a hidden part of the face shortens a side
-    return BlockDetection(position_m=np.array([*centre_xy, top_z - size / 2.0]), yaw_rad=yaw, top_pixels=int(len(u)),
+    return BlockDetection(position_m=np.array([*centre_xy, size / 2.0]), yaw_rad=yaw, top_pixels=int(len(u)),
                           whole=whole)
