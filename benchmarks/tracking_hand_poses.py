@@ -106,7 +106,8 @@ def main(argv: list[str] | None = None) -> dict:
         s = summary[proposal]
         print(f"{proposal}: all {100 * s['rms_m_all']['mean']:.2f} cm, pooled {100 * s['rms_m_pooled']['mean']:.2f}, "
               f"shoulder / elbow / finger {100 * s['rms_m_shoulder']['mean']:.2f} / "
-              f"{100 * s['rms_m_elbow']['mean']:.2f} / {100 * s['rms_m_index_tip']['mean']:.2f} cm, classes {100 * s['frame_accuracy']['mean']:.1f} %")
+              f"{100 * s['rms_m_elbow']['mean']:.2f} / {100 * s['rms_m_index_tip']['mean']:.2f} cm, "
+              f"classes {100 * s['frame_accuracy']['mean']:.1f} %")
     result = {"protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                            "filter_seed": 0, "proposals": args.proposals, "from_markers": args.from_markers,
                            "models": "shipped default models",
