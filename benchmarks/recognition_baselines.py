@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import functools
 import itertools
+import logging
 import sys
 import time
 from pathlib import Path
@@ -65,7 +66,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     clf = parser.add_argument_group("frame classifier (defaults chosen on validation)")
     clf.add_argument("--clf-offsets", type=int, nargs="+", default=list(CLASSIFIER_FITS["offsets"][0]))
     clf.add_argument("--clf-iter", type=int, default=100, help="boosting rounds")
-    clf.add_argument("--clf-stride", type=int, default=4, help="fit on every this-many-th training frame")
+    clf.add_argument("--clf-stride", type=int, default=8, help="fit on every this-many-th training frame")
     clf.add_argument("--clf-smoothing", default="grammar", choices=("none", "majority", "grammar"))
     clf.add_argument("--clf-window", type=int, default=25, help="majority window (frames)")
     clf.add_argument("--clf-weight", type=float, default=1.0, help="weight of the classifier's log-evidence (grammar)")
@@ -76,6 +77,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
+    logging.getLogger("hmmlearn").setLevel(logging.ERROR)  # EM's per-class convergence notes: hundreds of lines
     import numpy as np
 
     from hoap_actions.demonstration.datasets import load_demonstrations

@@ -97,6 +97,23 @@ def test_the_joined_chains_decode_as_hmmlearn_decodes_the_same_composite_hmm(cla
     assert score == pytest.approx(logprob, rel=1e-10)
 
 
+def test_a_class_whose_runs_are_as_short_as_its_chain_keeps_a_proper_chain(data):
+    """Every run of class 7 is exactly 3 frames, the chain's length: EM sees no stay anywhere, and without
+    the transition pseudo-count the last state's row would be all zeros (then NaN parameters)."""
+    (X, labels, lengths), _ = data
+    keep = np.ones(len(X), bool)
+    for start in np.flatnonzero(np.diff(np.r_[-1, labels]) != 0):
+        if labels[start] == 7:
+            keep[start + 3:start + np.argmax(labels[start:] != 7)] = False
+    short_lengths = [int(np.sum(keep[a:b])) for a, b in zip(np.r_[0, np.cumsum(lengths)[:-1]], np.cumsum(lengths))]
+    model = ClassHMMs(n_states=3, n_iter=10).fit(X[keep], short_lengths, labels=labels[keep])
+    for chain in model.hmms_.values():
+        np.testing.assert_allclose(chain.transmat_.sum(axis=1), 1.0)
+        assert np.all(np.isfinite(chain.means_))
+    assert model.exit_probabilities_[list(model.class_ids_).index(7)] == 1.0
+    assert np.mean(model.predict(X[keep], short_lengths) == labels[keep]) > 0.95
+
+
 def test_class_hmms_chains_are_left_right_and_exit_probabilities_in_range(class_hmms):
     for model in class_hmms.hmms_.values():
         assert np.allclose(np.triu(model.transmat_), model.transmat_)

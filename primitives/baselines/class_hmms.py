@@ -16,7 +16,6 @@ hmmlearn is an optional dependency (``pip install "hoap-actions[bench]"``), impo
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 
 import numpy as np
@@ -35,9 +34,12 @@ from hoap_actions.primitives.baselines.frame_labels import (
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.models.connected_recognition import ChainedHMM
 
-logger = logging.getLogger(__name__)
+__all__ = ["TRANSITION_PSEUDO_COUNT", "ClassHMMs", "import_hmmlearn"]
 
-__all__ = ["ClassHMMs", "import_hmmlearn"]
+TRANSITION_PSEUDO_COUNT = 1e-3
+"""Dirichlet pseudo-count on each allowed transition (stay, advance) in EM: without it a last state that
+every training run leaves after one frame gets a row of zeros, and EM's next step NaN parameters (seen
+with 20 states on the ``paper`` classes)."""
 
 
 def import_hmmlearn():
@@ -147,8 +149,10 @@ class ClassHMMs:
         parts = [np.concatenate([r[k * len(r) // n:(k + 1) * len(r) // n] for r in runs]) for k in range(n)]
         mean_length = np.mean([len(r) for r in runs])
         stay = float(np.clip(1.0 - n / mean_length, 0.0, 0.99)) if n > 1 else 1.0
+        allowed = np.eye(n) + np.eye(n, k=1)
         model = hmm.GaussianHMM(n_components=n, covariance_type="diag", min_covar=self.min_covar, n_iter=self.n_iter,
-                                tol=self.tol, params="tmc", init_params="", implementation="scaling")
+                                tol=self.tol, params="tmc", init_params="", implementation="log",
+                                transmat_prior=1.0 + TRANSITION_PSEUDO_COUNT * allowed)
         model.startprob_ = np.eye(n)[0]
         model.transmat_ = np.eye(n) * stay + np.eye(n, k=1) * (1.0 - stay)
         model.transmat_[-1, -1] = 1.0

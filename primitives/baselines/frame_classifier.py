@@ -9,8 +9,9 @@ frame-by-frame classes are then smoothed (``smoothing``):
 
 - ``"none"``: each frame's likeliest class;
 - ``"majority"``: the class most frames in a centred window of ``smoothing_window`` frames take;
-- ``"grammar"``: Viterbi over one state per class, the classifier's posteriors over the class's share
-  of the training frames as evidence (``emission_weight`` times their log), staying in a class with the
+- ``"grammar"``: Viterbi over one state per class, the classifier's posteriors (floored at
+  :data:`PROBABILITY_FLOOR`: boosting's underflow to 0 would rule a class out for good) over the class's
+  share of the training frames as evidence (``emission_weight`` times their log), staying in a class with the
   geometric duration of its training runs and leaving it only to a class the grammar allows next
   (the project's :class:`~hoap_actions.primitives.models.connected_recognition.ChainedHMM` with chains
   of one state).
@@ -20,7 +21,6 @@ scikit-learn is an optional dependency (``pip install "hoap-actions[bench]"``), 
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 
 import numpy as np
@@ -38,11 +38,10 @@ from hoap_actions.primitives.baselines.frame_labels import (
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.models.connected_recognition import ChainedHMM
 
-logger = logging.getLogger(__name__)
-
-__all__ = ["SMOOTHINGS", "FrameClassifier", "marker_frame_features", "window_features"]
+__all__ = ["PROBABILITY_FLOOR", "SMOOTHINGS", "FrameClassifier", "marker_frame_features", "window_features"]
 
 SMOOTHINGS = ("none", "majority", "grammar")
+PROBABILITY_FLOOR = 1e-6  # the least class probability "grammar" smoothing reads
 
 
 def marker_frame_features(H: np.ndarray, fps: float, reference: int = 0) -> np.ndarray:
@@ -81,7 +80,9 @@ class FrameClassifier:
     train_stride
         fit on every this-many-th training frame.
     max_iter, learning_rate, max_leaf_nodes, l2_regularization
-        ``HistGradientBoostingClassifier``'s (no early stopping: ``max_iter`` rounds).
+        ``HistGradientBoostingClassifier``'s (no early stopping: ``max_iter`` rounds). Without an L2
+        penalty (scikit-learn's default) the boosting diverged on the ``paper`` classes, some of which
+        have a single short run: its training accuracy fell after a few rounds.
     smoothing, smoothing_window, emission_weight
         the temporal smoothing (module docstring).
     random_state
@@ -106,8 +107,8 @@ class FrameClassifier:
 
     _learned = ("classifier_", "class_ids_", "log_prior_", "grammar_", "chained_")
 
-    def __init__(self, offsets: Sequence[int] = (-20, -10, 0, 10, 20), train_stride: int = 4, max_iter: int = 100,
-                 learning_rate: float = 0.1, max_leaf_nodes: int = 31, l2_regularization: float = 0.0,
+    def __init__(self, offsets: Sequence[int] = (-20, -10, 0, 10, 20), train_stride: int = 8, max_iter: int = 100,
+                 learning_rate: float = 0.1, max_leaf_nodes: int = 31, l2_regularization: float = 1.0,
                  smoothing: str = "grammar", smoothing_window: int = 25, emission_weight: float = 1.0,
                  random_state: int = 0, n_threads: int = 1) -> None:
         self.offsets = offsets
@@ -225,8 +226,7 @@ class FrameClassifier:
             low = np.clip(t - self.smoothing_window // 2, 0, len(best))
             high = np.clip(t + (self.smoothing_window + 1) // 2, 0, len(best))
             return (counts[high] - counts[low]).argmax(axis=1)
-        with np.errstate(divide="ignore"):
-            evidence = self.emission_weight * (np.log(proba) - self.log_prior_)
+        evidence = self.emission_weight * (np.log(np.maximum(proba, PROBABILITY_FLOOR)) - self.log_prior_)
         path, score = self.chained_.viterbi(evidence)
         return path if np.isfinite(score) else best
 
