@@ -71,3 +71,27 @@ def test_more_local_workers_than_cpus_are_refused_before_any_work(tmp_path: Path
     too_many = (os.cpu_count() or 1) + 1
     run = subprocess.run([*DEMO[:-1], str(too_many)], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert run.returncode == 2 and "this machine's CPUs" in run.stderr, run.stderr[-500:]
+
+
+_SIGNAL_DURING_IMPORT = """
+import builtins, os, signal, sys
+import hoap_actions.__main__ as entry
+real_import = builtins.__import__
+def importing(name, *args, **kwargs):
+    if name == "hoap_actions.apps.cli":
+        os.kill(os.getpid(), signal.{sig})
+    return real_import(name, *args, **kwargs)
+builtins.__import__ = importing
+sys.argv = ["hoap-actions", "--help"]
+sys.exit(entry.run())
+"""
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_command_line_imports_ends_it_as_one_at_work(sig):
+    """The command line's own imports take about a second; a signal then exits 130 with one line, not
+    by the signal with a traceback."""
+    done = subprocess.run([sys.executable, "-c", _SIGNAL_DURING_IMPORT.format(sig=sig)], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 130, done.stderr[-1000:]
+    assert "interrupted while starting" in done.stderr and "Traceback" not in done.stderr
