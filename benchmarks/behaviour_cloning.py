@@ -25,6 +25,7 @@ JSON`` redraws the figure from a JSON this script wrote.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import subprocess
@@ -100,6 +101,49 @@ def paired(a: list[dict], b: list[dict], resamples: int = 10_000) -> dict:
             "only_first": only_a, "only_second": only_b, "mcnemar_p": float(p)}
 
 
+LIFTED_M = 0.02  # the target peg's bottom this high over the table: it was grasped and lifted
+OVER_HOLE_M = 0.01  # its bottom's horizontal distance from the target hole's centre while lifted
+
+
+def progress(name: str, policy_kwargs: dict, seeds: list[int]) -> dict:
+    """Validation only: the cloned policy's episodes on ``seeds`` [first, stop), recorded as a Minari
+    dataset in a temporary folder (by ``collect``, the same episode loop as the evaluation) and read
+    back: successes (with the Wilson interval), and two measures of how far the others got, from the
+    target peg's bottom (``achieved_goal``): lifted :data:`LIFTED_M` over the table, and carried to
+    within :data:`OVER_HOLE_M` of the target hole (``desired_goal``) while lifted."""
+    import tempfile
+
+    import minari
+
+    from hoap_actions.apps.collect import collect
+    from hoap_actions.apps.episodes import wilson_interval
+
+    first, stop = seeds
+    before = os.environ["MINARI_DATASETS_PATH"]
+    with tempfile.TemporaryDirectory() as root:
+        os.environ["MINARI_DATASETS_PATH"] = root
+        try:
+            dataset_id = f"{NAMESPACE}/validation-{name.replace('_', '')}-v0"
+            collect(ENV_ID, "bc", stop - first, first, dataset_id, policy_kwargs, robot=ROBOT)
+            rows = []
+            for episode in minari.load_dataset(dataset_id).iterate_episodes():
+                bottom, hole = episode.observations["achieved_goal"], episode.observations["desired_goal"]
+                lifted = bottom[:, 2] > LIFTED_M
+                near = np.linalg.norm(bottom[:, :2] - hole[:, :2], axis=1)[lifted]
+                success = bool(episode.terminations[-1] and episode.rewards[-1] == 0)  # the sparse reward's success
+                rows.append({"success": success, "steps": len(episode.actions),
+                             "lifted": bool(lifted.any()), "over_hole": bool(near.size and near.min() < OVER_HOLE_M)})
+        finally:
+            os.environ["MINARI_DATASETS_PATH"] = before
+    successes = sum(r["success"] for r in rows)
+    summary = {"success_rate": successes / len(rows), "success_ci95": wilson_interval(successes, len(rows)),
+               "lifted": sum(r["lifted"] for r in rows), "over_hole": sum(r["over_hole"] for r in rows),
+               "episodes": rows}
+    print(f"{name:>9}: success {successes} / {len(rows)}, lifted {summary['lifted']}, over the hole "
+          f"{summary['over_hole']}")
+    return summary
+
+
 def _git(*args: str) -> str:
     try:
         return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
@@ -165,11 +209,16 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=256)
     parser.add_argument("--learning-rate", type=float, default=1e-3)
     parser.add_argument("--weight-decay", type=float, default=0.0)
+    parser.add_argument("--schedule", default="constant", choices=["constant", "cosine"])
     parser.add_argument("--no-normalise", dest="normalise", action="store_false")
     parser.add_argument("--chunk", type=int, default=1, help="actions predicted per observation (temporal ensembling)")
     parser.add_argument("--patience", type=int, default=None,
                         help="a cloned policy gives up after this many steps of a still observation (default: never)")
     parser.add_argument("--random-state", type=int, default=0)
+    parser.add_argument("--reuse-models", action="store_true",
+                        help="load a model fitted before with the same data and hyper-parameters instead of fitting it")
+    parser.add_argument("--progress", action="store_true",
+                        help="validation: record the cloned policies' episodes, read how far each got (no baselines)")
     parser.add_argument("--figure", type=Path, default=None,
                         help=f"figure to write (default: {FIGURE} for the held-out layouts, none otherwise)")
     parser.add_argument("--figure-only", type=Path, metavar="JSON", help="only redraw the figure from this JSON")
@@ -180,6 +229,8 @@ def main() -> None:
     if args.seeds[0] < VALIDATION_SEEDS[0] and tuple(args.seeds) != HELD_OUT_SEEDS:
         parser.error(f"seeds below {VALIDATION_SEEDS[0]} are held out; the declared held-out layouts are "
                      f"{HELD_OUT_SEEDS[0]}-{HELD_OUT_SEEDS[1] - 1}")
+    if args.progress and args.baselines:
+        parser.error("--progress runs the cloned policies alone: give --baselines with no names")
     if any(n < 1 or n % SHARD for n in args.sizes):
         parser.error(f"--sizes must be positive multiples of {SHARD}")
     from hoap_actions.policies.behaviour_cloning import BehaviourCloning, minari_transitions
@@ -193,25 +244,38 @@ def main() -> None:
           f"({sum(t > 0 for t in shard_times)} collected now)")
 
     params = {"hidden": tuple(args.hidden), "epochs": args.epochs, "batch_size": args.batch_size,
-              "learning_rate": args.learning_rate, "weight_decay": args.weight_decay, "normalise": args.normalise,
+              "learning_rate": args.learning_rate, "weight_decay": args.weight_decay,
+              "schedule": args.schedule, "normalise": args.normalise,
               "chunk": args.chunk, "random_state": args.random_state, "threads": args.threads}
     models = args.data / "behaviour_cloning"
     training, policies = [], {}
     for n in sorted(args.sizes):
         X, Y, lengths = minari_transitions([shard_id(s) for s in shard_seeds[: n // SHARD]])
+        tag = hashlib.sha1(json.dumps(params, sort_keys=True).encode()).hexdigest()[:10]
+        path = models / f"bc_{n}_{tag}.pt"
         fit_start = time.perf_counter()
-        model = BehaviourCloning(**params).fit(X, Y, lengths)
-        fit_s = time.perf_counter() - fit_start
-        path = models / f"bc_{n}.pt"
-        model.save(path, overwrite=True)
-        training.append({"episodes": n, "seeds": [TRAINING_SEED, TRAINING_SEED + n], "transitions": len(X),
+        if args.reuse_models and path.exists():
+            model, fit_s = BehaviourCloning.load(path), None
+        else:
+            model = BehaviourCloning(**params).fit(X, Y, lengths)
+            fit_s = time.perf_counter() - fit_start
+            model.save(path, overwrite=True)
+        training.append({"episodes": n, "seeds": [TRAINING_SEED, TRAINING_SEED + n], "episodes_held": len(lengths),
+                         "transitions": len(X), "model": path.name,
                          "fit_s": fit_s, "final_loss": model.loss_curve_[-1], "loss_curve": model.loss_curve_})
         policies[f"bc_{n}"] = ("bc", {"model": str(path), "patience": args.patience})
-        print(f"bc_{n}: {len(X)} pairs from {len(lengths)} episodes, fitted in {fit_s:.0f} s, training loss "
+        print(f"bc_{n}: {len(X)} pairs from {len(lengths)} episodes, fitted in {fit_s or 0:.0f} s, training loss "
               f"{model.loss_curve_[0]:.4f} -> {model.loss_curve_[-1]:.4f}")
     policies.update({name: (name, {}) for name in args.baselines})
 
     eval_start = time.perf_counter()
+    if args.progress:
+        document = {name: progress(name, kwargs, args.seeds) for name, (_, kwargs) in policies.items()}
+        document |= {"seeds": list(args.seeds), "params": params, "patience": args.patience, "training": training,
+                     "evaluate_s": time.perf_counter() - eval_start, "code": code_version(),
+                     "environment": numeric_environment(None, torch=_version("torch"))}
+        write_json(args.output, document)
+        return
     results = compare_policies(ENV_ID, policies, range(*args.seeds), workers=args.workers, robot=ROBOT)
     evaluated = time.perf_counter() - eval_start
     document = {"seeds": list(args.seeds), "robot": ROBOT, "workers": args.workers, "params": params,

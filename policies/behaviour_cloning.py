@@ -45,6 +45,7 @@ STD_FLOOR = 1e-3
 """Smallest spread an input is divided by in standardisation: inputs that barely vary in the
 demonstrations (the welded robot's leg joints, its base pose) are centred, not blown up."""
 MAX_FILE_BYTES = 256 * 2**20
+SCHEDULES = ("constant", "cosine")
 STALL_CHANGE = 1e-4
 """Largest per-step change (m, rad, rad/s) of every number of the observation for which the policy
 counts the robot as standing still (stuck against a limit it measured 0.3-5e-5; moving, 1e-3 and more)."""
@@ -134,6 +135,9 @@ class BehaviourCloning(Estimator):
         Pairs per Adam step.
     learning_rate, weight_decay:
         Adam's step size and L2 penalty.
+    schedule:
+        ``"constant"`` step size, or ``"cosine"``: decayed from ``learning_rate`` to 0 over the
+        epochs along half a cosine (fewer epochs reach a lower loss).
     normalise:
         Standardise each input with the training mean and spread (at least :data:`STD_FLOOR`);
         False: inputs as they are.
@@ -169,13 +173,14 @@ class BehaviourCloning(Estimator):
     _readable_versions = (FORMAT_VERSION,)
 
     def __init__(self, hidden: Sequence[int] = (256, 256), epochs: int = 30, batch_size: int = 256,
-                 learning_rate: float = 1e-3, weight_decay: float = 0.0, normalise: bool = True, chunk: int = 1,
-                 random_state: int = 0, threads: int = 1) -> None:
+                 learning_rate: float = 1e-3, weight_decay: float = 0.0, schedule: str = "constant",
+                 normalise: bool = True, chunk: int = 1, random_state: int = 0, threads: int = 1) -> None:
         self.hidden = hidden
         self.epochs = epochs
         self.batch_size = batch_size
         self.learning_rate = learning_rate
         self.weight_decay = weight_decay
+        self.schedule = schedule
         self.normalise = normalise
         self.chunk = chunk
         self.random_state = random_state
@@ -196,6 +201,8 @@ class BehaviourCloning(Estimator):
             number = not isinstance(value, bool) and isinstance(value, (int, float, np.number)) and np.isfinite(value)
             if not number or value < 0 or (value == 0 and accepted == "> 0"):
                 raise InvalidInputError(f"{name} must be a finite number {accepted}; got {value!r}")
+        if self.schedule not in SCHEDULES:
+            raise InvalidInputError(f"schedule must be one of {SCHEDULES}; got {self.schedule!r}")
         if not isinstance(self.normalise, bool):
             raise InvalidInputError(f"normalise must be True or False; got {self.normalise!r}")
         if isinstance(self.random_state, bool) or not isinstance(self.random_state, (int, np.integer)) or not (
@@ -227,6 +234,9 @@ class BehaviourCloning(Estimator):
             network = _network(torch, X.shape[1], self.hidden, Y.shape[1])
             order = torch.Generator().manual_seed(int(self.random_state))
             optimiser = torch.optim.Adam(network.parameters(), lr=self.learning_rate, weight_decay=self.weight_decay)
+            steps = self.epochs * -(-len(X) // self.batch_size)
+            decay = torch.optim.lr_scheduler.LambdaLR(
+                optimiser, lambda step: 0.5 * (1 + np.cos(np.pi * step / steps)) if self.schedule == "cosine" else 1.0)
             losses = []
             for epoch in range(self.epochs):
                 total = 0.0
@@ -235,6 +245,7 @@ class BehaviourCloning(Estimator):
                     optimiser.zero_grad()
                     loss.backward()
                     optimiser.step()
+                    decay.step()
                     total += float(loss.detach()) * len(batch)
                 losses.append(total / len(X))
                 logger.debug("epoch %d: training loss %.5f", epoch + 1, losses[-1])

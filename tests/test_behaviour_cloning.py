@@ -64,6 +64,13 @@ def test_the_same_seed_gives_the_same_weights_bit_for_bit(linear_data, fitted):
     assert torch.get_num_threads() >= 1 and not torch.are_deterministic_algorithms_enabled()  # settings restored
 
 
+def test_a_cosine_schedule_comes_to_rest(linear_data, fitted):
+    cosine = BehaviourCloning(**SMALL, schedule="cosine", random_state=3).fit(*linear_data)
+    assert cosine.loss_curve_[-1] < 0.01 * cosine.loss_curve_[0]
+    assert abs(cosine.loss_curve_[-1] - cosine.loss_curve_[-2]) < 1e-3 * cosine.loss_curve_[-1]  # step size near 0
+    assert abs(cosine.loss_curve_[-1] - cosine.loss_curve_[-2]) < abs(fitted.loss_curve_[-1] - fitted.loss_curve_[-2])
+
+
 def test_save_and_load_give_identical_actions(fitted, linear_data, tmp_path):
     path = tmp_path / "bc.pt"
     fitted.save(path)
@@ -84,7 +91,7 @@ def test_an_unfitted_model_says_so():
 
 
 @pytest.mark.parametrize("params", [{"hidden": (0,)}, {"hidden": "64"}, {"epochs": 0}, {"learning_rate": 0.0},
-                                    {"weight_decay": -1.0}, {"normalise": 1}, {"random_state": -1},
+                                    {"weight_decay": -1.0}, {"schedule": "step"}, {"normalise": 1}, {"random_state": -1},
                                     {"random_state": None}])
 def test_bad_hyper_parameters_are_named(params):
     with pytest.raises(InvalidInputError, match=next(iter(params))):
