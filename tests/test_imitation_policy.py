@@ -17,6 +17,7 @@ from hoap_actions.imitation.imitate_env import BLOCK_SIZE
 from hoap_actions.policies.block_skills import (
     HALF,
     PUSH_ALONG,
+    PUSH_Z,
     BlockHand,
     closure_for,
     thumb_angle,
@@ -149,6 +150,17 @@ def test_the_thumb_stands_the_gap_off_the_block():
     assert float((block - face[0]) @ normal) == pytest.approx(HALF + gap)
     assert float((block - face[0]) @ along) == pytest.approx(PUSH_ALONG)
     assert np.arctan2(along[1], along[0]) == pytest.approx(heading + thumb)
+
+
+def test_the_hand_turns_left_as_it_goes_left(env):
+    """The design's premise: the IK heads the hand by where it is, about 3 degrees more per centimetre
+    to the left, so the thumb is the one face whose heading the policy sets."""
+    obs, _ = env.reset(seed=SEEDS["push"])
+    hand = BlockHand(env)
+    hand.start(obs)
+    headings = np.degrees([hand.heading_at(np.array([0.0, y, PUSH_Z])) for y in (-0.06, 0.0, 0.06)])
+    slopes = np.diff(headings) / 6.0  # degrees per centimetre
+    assert np.all(slopes > 2.0) and np.all(slopes < 5.0), headings
 
 
 def test_the_block_is_located_by_colour_within_a_millimetre_and_4_degrees(env):
