@@ -1,16 +1,16 @@
-"""The robot's hand skills on the block of ``Imitate-v0``: approach, place (grasp, carry, set down) and push.
+"""The robot's hand skills on the block of ``Imitate-v0``: approach, place (grasp, slide, let go) and push.
 
 The action space is ``ee_delta``: the hand's position and the thumb's closure, no twist of the wrist. The
-hand's heading about the vertical is the whole-body IK's choice, a function of where the hand is (about
-3 degrees more per centimetre to the left, measured on both robots; none of it depends on the path
-there). So the palm can only press on the block at the heading of where it stands, and a grasp turns the
+hand's heading about the vertical is the whole-body IK's choice, a function of where the hand is (3 to
+4 degrees more per centimetre to the left, from the IK model's probes of both robots; none of it depends
+on the path there). So the palm can only press on the block at the heading of where it stands, and a grasp turns the
 block to it (the squeeze lays a face flat on the palm). The thumb is the one face whose heading the
 policy sets: it pivots on the hand, from 45 degrees open to 15 degrees past parallel with the palm, and
 the closure turns it (:func:`thumb_angle`). Its outer face pushes the block away from the hand's thumb
 side, and a cube pushed by a flat face turns until a face lies flat on it: a push with the thumb held
 at the target's heading (the closure servoed against the hand's measured heading, every step) moves the
 block along the face's normal and leaves it turned as the target. That push is the skill every block
-target ends with; where the block is not already behind its target on that line, a grasp first carries
+target ends with; where the block is not already behind its target on that line, a grasp first slides
 it there (:meth:`BlockHand.place`).
 
 Skills are generators: each ``next()`` gives the ee_delta action for the current step, the hand's fields

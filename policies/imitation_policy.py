@@ -7,10 +7,10 @@ table and its turn), it looks at its own block with the overhead camera, sets th
 moved and turned by the effect: the same at both of ``Imitate-v0``'s levels) and runs the skills:
 
 - approach: the hand over the block, held there;
-- move: the block grasped, carried and set down at the target (:meth:`BlockHand.place`);
-- push, rotate, and a move whose set-down left it off: a thumb push along the line through the target
-  that leaves the block turned as the target (:meth:`BlockHand.push`), the block first carried behind
-  the target on that line when it is not there (or too close to it to turn on the way).
+- move: the block grasped, slid over the table to the target and let go (:meth:`BlockHand.place`);
+- push, rotate, and a move that left it off: a thumb push along the line through the target that
+  leaves the block turned as the target (:meth:`BlockHand.push`), the block first slid behind the
+  target on that line when it is not there (or too close to it to turn on the way).
 
 It then looks again and, while the episode lasts, tries once more from where the block is.
 Subclasses say where the intent comes from: :class:`ExecutionCeiling` takes the true one from the env
