@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import itertools
 import logging
 import sys
 import time
@@ -37,15 +36,19 @@ from _results import RESULTS, arguments, ensure_recording, numeric_environment, 
 
 FIGURES = ("frame_accuracy", "segment_accuracy", "edit_score", "oracle_cut_accuracy")
 PROJECT = "connected recognition (PHMMs)"
+NO_VOTE = "connected recognition, no object vote"  # PHMM chains and grammar alone: only the emissions differ from HMMS
 HMMS = "per-class GaussianHMMs"
 CLASSIFIER = "gradient boosting + smoothing"
 # the validation grid: what each fit takes, then what only recognition reads
-HMM_FITS = {"features": ("displacements", "positions+displacements"), "n_states": (5, 10, 20)}
-HMM_DECODING = {"stay_weight": (1.0, 2.0)}
-CLASSIFIER_FITS = {"offsets": ((-20, -10, 0, 10, 20), (-40, -20, -10, 0, 10, 20, 40))}
+HMM_FITS = ([{"features": "displacements", "n_states": n} for n in (5, 10, 20, 40)]
+            + [{"features": "positions+displacements", "n_states": n} for n in (5, 10, 20)])
+HMM_DECODING = [{"stay_weight": w} for w in (1.0, 2.0)]
+CLASSIFIER_FITS = [{"offsets": offsets} for offsets in ((-20, -10, 0, 10, 20), (-40, -20, -10, 0, 10, 20, 40),
+                                                        (-80, -40, -20, -10, 0, 10, 20, 40, 80),
+                                                        (-160, -80, -40, -20, 0, 20, 40, 80, 160))]
 CLASSIFIER_DECODING = ([{"smoothing": "none"}]
                        + [{"smoothing": "majority", "smoothing_window": w} for w in (11, 25, 51)]
-                       + [{"smoothing": "grammar", "emission_weight": w} for w in (0.25, 0.5, 1.0)])
+                       + [{"smoothing": "grammar", "emission_weight": w} for w in (0.1, 0.25, 0.5, 1.0)])
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -59,12 +62,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--models", type=Path, help="the project's models (default: the shipped ones)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes for the project's recognition")
     hmms = parser.add_argument_group("per-class HMMs (defaults chosen on validation)")
-    hmms.add_argument("--hmm-features", default="displacements", choices=HMM_FITS["features"])
+    hmms.add_argument("--hmm-features", default="displacements", choices=("displacements", "positions+displacements"))
     hmms.add_argument("--hmm-states", type=int, default=10)
     hmms.add_argument("--hmm-stay-weight", type=float, default=1.0)
     hmms.add_argument("--hmm-iter", type=int, default=20, help="EM iterations")
     clf = parser.add_argument_group("frame classifier (defaults chosen on validation)")
-    clf.add_argument("--clf-offsets", type=int, nargs="+", default=list(CLASSIFIER_FITS["offsets"][0]))
+    clf.add_argument("--clf-offsets", type=int, nargs="+", default=list(CLASSIFIER_FITS[0]["offsets"]))
     clf.add_argument("--clf-iter", type=int, default=100, help="boosting rounds")
     clf.add_argument("--clf-stride", type=int, default=8, help="fit on every this-many-th training frame")
     clf.add_argument("--clf-smoothing", default="grammar", choices=("none", "majority", "grammar"))
@@ -138,8 +141,8 @@ def main(argv: list[str] | None = None) -> dict:
     from hoap_actions.primitives.baselines.frame_labels import recording_scores
     from hoap_actions.primitives.pipelines.recognize import recognize_recording
 
-    per_recording: dict = {PROJECT: {}, HMMS: {}, CLASSIFIER: {}}
-    per_episode: dict = {PROJECT: {}, HMMS: {}, CLASSIFIER: {}}
+    per_recording: dict = {PROJECT: {}, NO_VOTE: {}, HMMS: {}, CLASSIFIER: {}}
+    per_episode: dict = {name: {} for name in per_recording}
     timeline_labels = {}
     for seed, (demos, movements, truth) in held_out.items():
         official = recognize_recording(models, demos, jobs=args.jobs, oracle=True, progress=True)
@@ -152,32 +155,35 @@ def main(argv: list[str] | None = None) -> dict:
                                         "oracle_cut_phi_error_median_m": official["oracle_cut_phi_error_median_m"],
                                         "recognise_s": project["recognise_s"], "wall_s": official["wall_s"],
                                         "movement_s": official["movement_s"]}
-        runs = {PROJECT: project,
+        runs = {PROJECT: project, NO_VOTE: without_vote(models, movements, truth),
                 HMMS: rc.run_baseline(hmms, functools.partial(rc.hmm_features, fps=fps, features=args.hmm_features),
                                       movements, truth),
                 CLASSIFIER: rc.run_baseline(classifier, functools.partial(rc.classifier_features, fps=fps), movements,
                                             truth)}
-        for name in (HMMS, CLASSIFIER):
-            per_recording[name][seed] = {**recording_scores(runs[name]["scores"]), "phi_error_median_m": None,
-                                         "recognise_s": runs[name]["recognise_s"], "cuts_s": runs[name]["cuts_s"],
-                                         "movement_s": official["movement_s"]}
+        for name in (NO_VOTE, HMMS, CLASSIFIER):
+            per_recording[name][seed] = {"oracle_cut_accuracy": None, **recording_scores(runs[name]["scores"]),
+                                         "phi_error_median_m": None, "recognise_s": runs[name]["recognise_s"],
+                                         "cuts_s": runs[name].get("cuts_s"), "movement_s": official["movement_s"]}
         for name, run in runs.items():
             per_episode[name][seed] = [{"frame_accuracy": s["frames_right"] / max(s["frames"], 1), "edit": s["edit"]}
                                        for s in run["scores"]]
-            print(f"seed {seed} {name}: " + ", ".join(f"{k} {per_recording[name][seed][k]:.4f}" for k in FIGURES))
+            print(f"seed {seed} {name}: " + ", ".join(f"{k} {per_recording[name][seed][k]:.4f}" for k in FIGURES
+                                                      if per_recording[name][seed][k] is not None))
         if not timeline_labels:
             shown = args.timeline_episodes
             timeline_labels = {"seed": seed, "truth": [truth[i] for i in shown],
                                **{name: [run["labels"][i] for i in shown] for name, run in runs.items()}}
 
-    summary = {name: {k: spread([r[k] for r in recordings.values()]) for k in (*FIGURES, "recognise_s")}
+    summary = {name: {k: spread([r[k] for r in recordings.values()])
+                      for k in (*FIGURES, "recognise_s", "phi_error_median_m")
+                      if all(r[k] is not None for r in recordings.values())}
                for name, recordings in per_recording.items()}
-    summary[PROJECT]["phi_error_median_m"] = spread([r["phi_error_median_m"] for r in per_recording[PROJECT].values()])
-    paired = {name: paired_differences(per_recording, per_episode, name) for name in (HMMS, CLASSIFIER)}
-    best = {k: max(summary, key=lambda name: summary[name][k]["mean"]) for k in FIGURES}
+    paired = {f"{a} - {b}": paired_differences(per_recording, per_episode, a, b)
+              for a, b in ((PROJECT, HMMS), (PROJECT, CLASSIFIER), (NO_VOTE, HMMS))}
+    best = {k: max((PROJECT, HMMS, CLASSIFIER), key=lambda name: summary[name][k]["mean"]) for k in FIGURES}
     for name, s in summary.items():
-        print(f"{name:>32}: " + ", ".join(f"{k} {s[k]['mean']:.4f} [{s[k]['ci95'][0]:.4f}, {s[k]['ci95'][1]:.4f}]"
-                                          for k in FIGURES))
+        print(f"{name:>38}: " + ", ".join(f"{k} {s[k]['mean']:.4f} [{s[k]['ci95'][0]:.4f}, {s[k]['ci95'][1]:.4f}]"
+                                          for k in FIGURES if k in s))
     print("best: " + ", ".join(f"{k} {name}" for k, name in best.items()))
 
     timeline = {
@@ -185,7 +191,7 @@ def main(argv: list[str] | None = None) -> dict:
         "fps": fps, "kinds": {str(c.primitive_id): c.kind for c in models.discovery_.classes_},
         "episode_starts": np.cumsum([0] + [len(t) for t in timeline_labels["truth"]])[:-1].tolist(),
         "rows": {"true (discovery, from the object)": rc.timeline_runs(timeline_labels["truth"]),
-                 **{name: rc.timeline_runs(timeline_labels[name]) for name in (PROJECT, HMMS, CLASSIFIER)}},
+                 **{name: rc.timeline_runs(timeline_labels[name]) for name in per_recording}},
     }
     figure = args.output.with_suffix(".png")
     rc.plot_timeline(timeline, figure)
@@ -213,51 +219,74 @@ def main(argv: list[str] | None = None) -> dict:
     return document
 
 
-def paired_differences(per_recording: dict, per_episode: dict, name: str) -> dict:
-    """The project's figures minus baseline ``name``'s: per recording (mean and 95 % interval over the
+def without_vote(models, movements: list, truth: list) -> dict:
+    """Connected recognition of the movements with the object's vote off (the models' own vote restored)."""
+    from hoap_actions.primitives.baselines import recognition_comparison as rc
+
+    vote = models.object_vote
+    models.set_params(object_vote=0.0)
+    try:
+        return rc.project_labels(models, movements, truth)
+    finally:
+        models.set_params(object_vote=vote)
+
+
+def paired_differences(per_recording: dict, per_episode: dict, first: str, second: str) -> dict:
+    """Method ``first``'s figures minus ``second``'s: per recording (mean and 95 % interval over the
     recordings) and, for frame accuracy and edit score, per episode (over every held-out episode)."""
-    recordings = per_recording[PROJECT]
-    out = {k: spread([recordings[s][k] - per_recording[name][s][k] for s in recordings]) for k in FIGURES}
+    recordings = per_recording[first]
+    shared = [k for k in FIGURES
+              if all(per_recording[m][s][k] is not None for m in (first, second) for s in recordings)]
+    out = {k: spread([recordings[s][k] - per_recording[second][s][k] for s in recordings]) for k in shared}
     for k in ("frame_accuracy", "edit"):
-        diffs = [a[k] - b[k] for s in recordings for a, b in zip(per_episode[PROJECT][s], per_episode[name][s])]
+        diffs = [a[k] - b[k] for s in recordings for a, b in zip(per_episode[first][s], per_episode[second][s])]
         out[f"per_episode_{k}"] = {key: value for key, value in spread(diffs).items() if key != "values"}
     return out
 
 
 def validate(args: argparse.Namespace, models, held_out: dict, fit_hmms, fit_classifier, fps: float) -> dict:
     """Every candidate setting of each baseline on the validation recordings, the project's method beside them."""
-    from hoap_actions.primitives.baselines import recognition_comparison as rc
-    from hoap_actions.primitives.baselines.frame_labels import recording_scores
+    import numpy as np
 
-    def scored(method=None, features=None) -> dict:
-        """The project's method (``method`` None) or a fitted baseline reading ``features`` of the markers."""
+    from hoap_actions.primitives.baselines import recognition_comparison as rc
+    from hoap_actions.primitives.baselines.frame_labels import episode_scores, recording_scores
+
+    def scored(method=None, features=None, vote: bool = True) -> dict:
+        """The project's method (``method`` None; ``vote``: with the object's) or a fitted baseline reading
+        ``features`` of the markers."""
         figures = {}
         for seed, (_, movements, truth) in held_out.items():
-            run = (rc.project_labels(models, movements, truth) if method is None
+            run = ((rc.project_labels if vote else without_vote)(models, movements, truth) if method is None
                    else rc.run_baseline(method, features, movements, truth, cuts=False))
             figures[seed] = recording_scores(run["scores"])
         return {"per_recording": figures, **{k: float(sum(f[k] for f in figures.values()) / len(figures))
                                              for k in ("frame_accuracy", "segment_accuracy", "edit_score")}}
 
-    results = {PROJECT: scored(), HMMS: [], CLASSIFIER: []}
-    print(f"{PROJECT}: edit {results[PROJECT]['edit_score']:.4f}, frames {results[PROJECT]['frame_accuracy']:.4f}")
-    for features, n_states in itertools.product(*HMM_FITS.values()):
-        model, fit_s = fit_hmms(features, n_states, 1.0)
-        for stay_weight in HMM_DECODING["stay_weight"]:
-            model.set_params(stay_weight=stay_weight)
-            setting = {"features": features, "n_states": n_states, "stay_weight": stay_weight}
+    results = {PROJECT: scored(), NO_VOTE: scored(vote=False), HMMS: [], CLASSIFIER: []}
+    for name in (PROJECT, NO_VOTE):
+        print(f"{name}: edit {results[name]['edit_score']:.4f}, frames {results[name]['frame_accuracy']:.4f}")
+    for fit in HMM_FITS:
+        model, fit_s = fit_hmms(fit["features"], fit["n_states"], 1.0)
+        for decoding in HMM_DECODING:
+            model.set_params(**decoding)
+            setting = {**fit, **decoding}
             row = {"setting": setting, "fit_s": fit_s,
-                   **scored(model, functools.partial(rc.hmm_features, fps=fps, features=features))}
+                   **scored(model, functools.partial(rc.hmm_features, fps=fps, features=fit["features"]))}
             results[HMMS].append(row)
             print(f"{HMMS} {setting}: edit {row['edit_score']:.4f}, frames {row['frame_accuracy']:.4f}, "
                   f"fit {fit_s:.0f} s")
-    for (offsets,) in itertools.product(*CLASSIFIER_FITS.values()):
-        model, fit_s = fit_classifier(offsets)
+    for fit in CLASSIFIER_FITS:
+        model, fit_s = fit_classifier(fit["offsets"])
+        probabilities = {seed: [model.predict_proba(rc.classifier_features(H, fps)) for H in movements]
+                         for seed, (_, movements, _) in held_out.items()}  # classified once, smoothed each way
         for decoding in CLASSIFIER_DECODING:
             model.set_params(**decoding)
-            setting = {"offsets": list(offsets), **decoding}
-            row = {"setting": setting, "fit_s": fit_s,
-                   **scored(model, functools.partial(rc.classifier_features, fps=fps))}
+            setting = {"offsets": list(fit["offsets"]), **decoding}
+            figures = {seed: recording_scores([episode_scores(model.smooth(p), t) for p, t in
+                                               zip(probabilities[seed], held_out[seed][2])]) for seed in held_out}
+            row = {"setting": setting, "fit_s": fit_s, "per_recording": figures,
+                   **{k: float(np.mean([f[k] for f in figures.values()])) for k in ("frame_accuracy",
+                                                                                   "segment_accuracy", "edit_score")}}
             results[CLASSIFIER].append(row)
             print(f"{CLASSIFIER} {setting}: edit {row['edit_score']:.4f}, frames {row['frame_accuracy']:.4f}, "
                   f"fit {fit_s:.0f} s")

@@ -134,6 +134,7 @@ def test_the_classifier_recognises_held_out_sequences_perfectly(classifier, data
     _, (X, labels, lengths) = data
     classifier.set_params(smoothing=smoothing)
     assert np.array_equal(classifier.predict(X, lengths), labels)
+    assert np.array_equal(classifier.smooth(classifier.predict_proba(X, lengths), lengths), labels)
     first = X[: lengths[0]]
     cuts = [(a, b) for _, a, b in true_cuts(labels[: lengths[0]])]
     assert np.array_equal(classifier.predict_segments(first, cuts), CLASSES)

@@ -206,8 +206,13 @@ class FrameClassifier:
 
     def predict(self, X: np.ndarray, lengths: Sequence[int] | None = None) -> np.ndarray:
         """Each frame's class id (N,) after the smoothing, sequence by sequence."""
-        proba = self.predict_proba(X, lengths)
-        _, bounds = check_frames(X, lengths)
+        return self.smooth(self.predict_proba(X, lengths), lengths)
+
+    def smooth(self, proba: np.ndarray, lengths: Sequence[int] | None = None) -> np.ndarray:
+        """Each frame's class id (N,) from the frames' class probabilities (:meth:`predict_proba`), smoothed
+        sequence by sequence: several smoothings of one set of probabilities without classifying again."""
+        check_is_fitted(self)
+        proba, bounds = check_frames(proba, lengths, len(self.class_ids_))
         out = np.empty(len(proba), dtype=np.int64)
         for a, b in bounds:
             out[a:b] = self.class_ids_[self._smoothed(proba[a:b])]
