@@ -73,8 +73,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     clf.add_argument("--clf-smoothing", default="grammar", choices=("none", "majority", "grammar"))
     clf.add_argument("--clf-window", type=int, default=25, help="majority window (frames)")
     clf.add_argument("--clf-weight", type=float, default=1.0, help="weight of the classifier's log-evidence (grammar)")
-    parser.add_argument("--timeline-episodes", type=int, nargs="+", default=list(range(6)),
-                        help="episodes of the first test recording drawn in the timeline")
+    parser.add_argument("--timeline-episodes", type=int, nargs="+", default=list(range(0, 104, 13)),
+                        help="episodes of the first test recording drawn in the timeline (default: one of each "
+                             "action of the preset)")
     return parser.parse_args(argv)
 
 

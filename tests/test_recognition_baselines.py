@@ -4,12 +4,14 @@ well-separated classes with a grammar, the joined chains against hmmlearn's own 
 from __future__ import annotations
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from hoap_actions.errors import InvalidInputError, NotFittedError
 from hoap_actions.primitives.baselines.frame_labels import episode_scores, recording_scores, true_cuts
+from hoap_actions.primitives.baselines.recognition_comparison import discovery_labels, plot_timeline, timeline_runs
 
 hmm = pytest.importorskip("hmmlearn.hmm")
 
@@ -226,3 +228,17 @@ def test_cuts_are_checked(class_hmms, data):
     (X, _, _), _ = data
     with pytest.raises(InvalidInputError, match="cuts"):
         class_hmms.predict_segments(X[:30], [(0, 20), (10, 30)])
+
+
+def test_discovery_labels_and_the_timeline_figure(tmp_path):
+    discovery = SimpleNamespace(segmentations_=[[(0, 0, 3), (4, 3, 5)], [(0, 0, 2), (2, 2, 4)]])
+    labels = discovery_labels(discovery, [5, 4])
+    assert np.array_equal(labels, [0, 0, 0, 4, 4, 0, 0, 2, 2])
+    with pytest.raises(InvalidInputError, match="fitted on 2 demonstrations"):
+        discovery_labels(discovery, [5, 5])
+    truth, guess = [labels[:5], labels[5:]], [np.array([0, 0, 4, 4, 4]), np.array([0, -1, 2, 2])]
+    assert timeline_runs(truth) == [[0, 0, 3], [4, 3, 5], [0, 5, 7], [2, 7, 9]]
+    timeline = {"title": "two episodes", "fps": 10.0, "kinds": {"0": "approach", "2": "remove", "4": "manipulation"},
+                "episode_starts": [0, 5], "rows": {"true": timeline_runs(truth), "guess": timeline_runs(guess)}}
+    plot_timeline(timeline, tmp_path / "timeline.png")
+    assert (tmp_path / "timeline.png").stat().st_size > 1000

@@ -129,9 +129,15 @@ def plot_timeline(timeline: dict, path: str | Path) -> None:
     truth = np.zeros(max(end for *_, end in rows[truth_name]), dtype=np.int64)
     for c, a, b in rows[truth_name]:
         truth[a:b] = c
+    kinds = {int(k): v for k, v in timeline["kinds"].items()}
     shown = sorted({c for runs_ in rows.values() for c, *_ in runs_})
-    colours = {c: plt.get_cmap("tab20")(i % 20) if c != UNKNOWN else (0.85, 0.85, 0.85, 1.0)
-               for i, c in enumerate(shown)}
+    # approach and remove (most frames) in greys, no class black, the manipulation pieces in 38 hues
+    palette = [plt.get_cmap(name)(i) for name in ("tab20", "tab20b") for i in (*range(0, 20, 2), *range(1, 20, 2))
+               if name != "tab20" or i not in (14, 15)]  # tab20's own greys left out
+    pieces = iter(palette * (1 + len(shown) // len(palette)))
+    fixed = {"approach": (0.78, 0.78, 0.78, 1.0), "remove": (0.5, 0.5, 0.5, 1.0)}
+    colours = {c: (0.0, 0.0, 0.0, 1.0) if c == UNKNOWN else fixed.get(kinds.get(c), None) or next(pieces)
+               for c in shown}
     fps = float(timeline["fps"])
     fig, ax = plt.subplots(figsize=(12, 1.0 + 0.75 * len(rows)))
     for row, runs_ in enumerate(rows.values()):
@@ -148,7 +154,6 @@ def plot_timeline(timeline: dict, path: str | Path) -> None:
     ax.set_xlabel("time (s); dotted lines: episode boundaries; red ticks: scored frames whose class is not the "
                   "true one")
     ax.set_title(timeline["title"], fontsize=10)
-    kinds = {int(k): v for k, v in timeline["kinds"].items()}
     handles = [Patch(color=colours[c], label="no class" if c == UNKNOWN else f"{c} ({kinds.get(c, '?')})")
                for c in shown]
     ax.legend(handles=handles, title="class (kind)", loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
