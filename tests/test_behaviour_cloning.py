@@ -90,9 +90,10 @@ def test_an_unfitted_model_says_so():
         model.save("never.pt")
 
 
-@pytest.mark.parametrize("params", [{"hidden": (0,)}, {"hidden": "64"}, {"epochs": 0}, {"learning_rate": 0.0},
-                                    {"weight_decay": -1.0}, {"schedule": "step"}, {"normalise": 1}, {"random_state": -1},
-                                    {"random_state": None}])
+@pytest.mark.parametrize("params", [
+    {"hidden": (0,)}, {"hidden": "64"}, {"epochs": 0}, {"learning_rate": 0.0}, {"weight_decay": -1.0},
+    {"schedule": "step"}, {"normalise": 1}, {"random_state": -1}, {"random_state": None},
+])
 def test_bad_hyper_parameters_are_named(params):
     with pytest.raises(InvalidInputError, match=next(iter(params))):
         BehaviourCloning(**params).fit(np.zeros((4, 2)), np.zeros((4, 1)))
