@@ -204,16 +204,17 @@ def main() -> None:
     parser.add_argument("--baselines", nargs="*", choices=["scripted", "phmm"], default=["scripted", "phmm"])
     parser.add_argument("--workers", type=int, default=1, help="processes for collection and evaluation")
     parser.add_argument("--threads", type=int, default=1, help="PyTorch threads while fitting")
-    parser.add_argument("--hidden", type=int, nargs="+", default=[256, 256])
-    parser.add_argument("--epochs", type=int, default=30)
+    # defaults: the settings chosen on the validation layouts (docs/experiments/behaviour_cloning.md)
+    parser.add_argument("--hidden", type=int, nargs="+", default=[128, 128])
+    parser.add_argument("--epochs", type=int, default=100)
     parser.add_argument("--batch-size", type=int, default=256)
     parser.add_argument("--learning-rate", type=float, default=1e-3)
     parser.add_argument("--weight-decay", type=float, default=0.0)
     parser.add_argument("--schedule", default="constant", choices=["constant", "cosine"])
     parser.add_argument("--no-normalise", dest="normalise", action="store_false")
     parser.add_argument("--chunk", type=int, default=1, help="actions predicted per observation (temporal ensembling)")
-    parser.add_argument("--patience", type=int, default=None,
-                        help="a cloned policy gives up after this many steps of a still observation (default: never)")
+    parser.add_argument("--patience", type=int, default=30,
+                        help="a cloned policy gives up after this many steps of a still observation")
     parser.add_argument("--random-state", type=int, default=0)
     parser.add_argument("--reuse-models", action="store_true",
                         help="load a model fitted before with the same data and hyper-parameters instead of fitting it")
