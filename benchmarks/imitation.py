@@ -1,14 +1,18 @@
-"""The execution ceiling of ``Imitate-v0``: the robot told the true action and effect of each demonstration
-(``"imitation-oracle"``) beside the robot doing nothing (``"nothing"``), on the same episodes, in one run.
+"""Imitation on ``Imitate-v0``: the robot reading the demonstration's recorded markers and block path with
+its action models (``"imitation-markers"``, the oracle of vision), the robot told the true action and
+effect (``"imitation-oracle"``, the execution ceiling) and the robot doing nothing (``"nothing"``), on the
+same episodes, in one run.
 
-Held-out episodes, declared in ``docs/experiments/imitation.md`` before the first run: seeds 91000-91199,
-``level="mapped"``, once per robot. Choices were made on the validation seeds 90000-90099.
+Held-out episodes, declared in ``docs/experiments/imitation.md`` before the first run: seeds 91000-91199
+(the execution ceiling, ``level="mapped"``, once per robot), 93000-93199 (from markers). Choices were made
+on the validation seeds 90000-90099.
 
-    python benchmarks/imitation.py [--robot fixed_legs|full] [--seeds 91000 91200] [--workers 1]
+    python benchmarks/imitation.py [--robot fixed_legs|full] [--seeds 91000 91200] [--policies oracle nothing]
 
 Per policy: success rate with its 95 % Wilson interval, per demonstrated action too, falls, how episodes
-ended, the mean wall time per episode (on a shared, loaded machine); and how well the overhead camera
-locates the block on the same resets. Writes
+ended, the mean wall time per episode (on a shared, loaded machine); how well the overhead camera locates the
+block on the same resets; and, with ``markers``, how often the action read from the markers is the
+demonstrated one. Writes
 ``results/imitation_<robot>.json`` (or ``--output``).
 """
 
@@ -26,6 +30,8 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.apps.episodes import compare_policies, summarise, wilson_interval
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.imitation.imitate_env import BLOCK_SIZE
+from hoap_actions.imitation.reading import read_markers
+from hoap_actions.models.shipped import load_default_models
 from hoap_actions.policies.block_skills import wrap_quarter
 from hoap_actions.policies.imitation_policy import ACTIONS
 from hoap_actions.vision.block import locate_block
@@ -35,20 +41,25 @@ from _results import RESULTS, arguments, numeric_environment, write_json
 
 ENV_ID = "hoap_actions/Imitate-v0"
 HELD_OUT_SEEDS = (91000, 91200)  # [first, stop): declared in docs/experiments/imitation.md, run once per robot
-POLICIES = {"oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
+POLICIES = {"markers": ("imitation-markers", {}), "oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
 
 
-def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict]:
-    """The action each seed's demonstration shows (the env's oracle, read after a reset) and how well the
-    overhead camera locates the block there (:func:`~hoap_actions.vision.block.locate_block` at 320 x 240
-    against the simulator's pose: centre error in mm, turn error in degrees modulo a quarter turn)."""
+def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict[int, str | None], dict]:
+    """The action each seed's demonstration shows (the env's oracle, read after a reset), the action read
+    from its markers and block path (:func:`~hoap_actions.imitation.reading.read_markers`, shipped models)
+    and how well the overhead camera locates the block there (:func:`~hoap_actions.vision.block.locate_block`
+    at 320 x 240 against the simulator's pose: centre error in mm, turn error in degrees modulo a quarter
+    turn)."""
     env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta")
     parse, capture = env.get_wrapper_attr("parse_observation"), env.get_wrapper_attr("capture")
-    actions, centre_mm, turn_deg = {}, [], []
+    models = load_default_models()
+    actions, read, centre_mm, turn_deg = {}, {}, [], []
     try:
         for seed in seeds:
             obs, _ = env.reset(seed=seed)
-            actions[seed] = env.get_wrapper_attr("true_demonstration")().action
+            shown = env.get_wrapper_attr("true_demonstration")()
+            actions[seed] = shown.action
+            read[seed] = read_markers(models, shown.H, shown.O).action
             view, truth = capture("overhead", 320, 240), parse(obs)
             found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE)
             if found is None:
@@ -63,7 +74,7 @@ def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict]:
                                     "max": float(np.max(centre_mm))},
                 "turn_error_deg": {"median": float(np.median(turn_deg)), "p95": float(np.percentile(turn_deg, 95)),
                                    "max": float(np.max(turn_deg))}}
-    return actions, location
+    return actions, read, location
 
 
 def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
@@ -83,25 +94,36 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs=2, default=HELD_OUT_SEEDS, metavar=("FIRST", "STOP"))
     parser.add_argument("--robot", default="fixed_legs", choices=list(ROBOT_MODELS))
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--policies", nargs="+", choices=list(POLICIES), default=list(POLICIES))
     args = parser.parse_args()
     if args.output == RESULTS / "imitation.json":
         args.output = RESULTS / f"imitation_{args.robot}.json"
     seeds = range(*args.seeds)
     start = time.perf_counter()
-    results = compare_policies(ENV_ID, POLICIES, seeds, workers=args.workers, robot=args.robot)
+    results = compare_policies(ENV_ID, {name: POLICIES[name] for name in args.policies}, seeds,
+                               workers=args.workers, robot=args.robot)
     wall = time.perf_counter() - start
-    actions, location = reset_pass(seeds, args.robot)
+    actions, read, location = reset_pass(seeds, args.robot)
     document = {"env": ENV_ID, "level": "mapped", "seeds": list(args.seeds), "robot": args.robot,
                 "workers": args.workers, "wall_s": wall, "environment": numeric_environment(None),
                 "block_location": location}
     print(f"block located on {location['located']} of {location['of']} resets: centre error median "
           f"{location['centre_error_mm']['median']:.2f} mm (max {location['centre_error_mm']['max']:.2f}), turn "
           f"{location['turn_error_deg']['median']:.1f} deg (max {location['turn_error_deg']['max']:.1f})")
+    right = sum(read[seed] == actions[seed] for seed in seeds)
+    document["read_from_markers"] = {
+        "right": right, "of": len(seeds), "rate": right / len(seeds), "ci95": wilson_interval(right, len(seeds)),
+        "confusion": {f"{a} as {b}": sum(actions[s] == a and read[s] == b for s in seeds)
+                      for a in ACTIONS for b in (*ACTIONS, None) if a != b
+                      and any(actions[s] == a and read[s] == b for s in seeds)}}
+    print(f"action read from the markers: {right} of {len(seeds)}; confusions "
+          f"{document['read_from_markers']['confusion']}")
     for name, episodes in results.items():
         summary = summarise(episodes)
         summary["by_action"] = by_action(episodes, actions)
         for episode in summary["episodes"]:
             episode["action"] = actions[episode["seed"]]
+            episode["read_from_markers"] = read[episode["seed"]]
         document[name] = summary
         low, high = summary["success_ci95"]
         print(f"{name:>8} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "
@@ -110,9 +132,12 @@ def main() -> None:
         for action, row in summary["by_action"].items():
             a, b = row["success_ci95"]
             print(f"{'':>10}{action:>9}: {row['successes']}/{row['episodes']} [{a:.1%}, {b:.1%}]")
-    oracle, nothing = results["oracle"], results["nothing"]
-    document["paired"] = {"oracle_only": sum(o.success and not n.success for o, n in zip(oracle, nothing)),
-                          "nothing_only": sum(n.success and not o.success for o, n in zip(oracle, nothing))}
+    names = list(results)
+    document["paired"] = {f"{a} - {b}": {f"{a}_only": sum(x.success and not y.success
+                                                           for x, y in zip(results[a], results[b])),
+                                         f"{b}_only": sum(y.success and not x.success
+                                                          for x, y in zip(results[a], results[b]))}
+                          for i, a in enumerate(names) for b in names[i + 1:]}
     write_json(args.output, document)
 
 

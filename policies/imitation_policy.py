@@ -14,7 +14,8 @@ moved and turned by the effect: the same at both of ``Imitate-v0``'s levels) and
 
 It then looks again and, while the episode lasts, tries once more from where the block is.
 Subclasses say where the intent comes from: :class:`ExecutionCeiling` takes the true one from the env
-(the oracle), so what it misses is what execution misses.
+(the oracle), so what it misses is what execution misses; :class:`MarkerImitation` reads it from the
+demonstration's recorded markers and block path with the action models (the oracle of vision).
 """
 
 from __future__ import annotations
@@ -31,9 +32,11 @@ from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.imitation.reading import DemonstrationReading, read_markers
+from hoap_actions.models.shipped import load_default_models
 from hoap_actions.policies.block_skills import BlockHand, run_up, wrap_quarter
 
-__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "ExecutionCeiling", "Intent", "intent_of"]
+__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "ExecutionCeiling", "Intent", "MarkerImitation", "intent_of"]
 
 logger = logging.getLogger(__name__)
 
@@ -176,6 +179,26 @@ class ExecutionCeiling(BlockImitation):
     def intent(self) -> Intent:
         shown = self._truth()
         return intent_of(shown.action, shown.object_start, shown.object_end)
+
+
+class MarkerImitation(BlockImitation):
+    """Imitation from the demonstration's recorded markers and block path (``--from-markers``), read with
+    the shipped action models (:func:`~hoap_actions.imitation.reading.read_markers`): what it misses
+    beyond :class:`ExecutionCeiling` is lost in recognition, none in vision. The markers and path come
+    from the env's evaluation accessor, of which it reads nothing else."""
+
+    def __init__(self, env: gymnasium.Env) -> None:
+        super().__init__(env)
+        self._truth = env.get_wrapper_attr("true_demonstration")
+        self.models = load_default_models()
+        self.reading: DemonstrationReading | None = None
+
+    def intent(self) -> Intent | None:
+        shown = self._truth()
+        self.reading = read_markers(self.models, shown.H, shown.O)
+        if self.reading.action is None:
+            return None
+        return intent_of(self.reading.action, self.reading.object_start, self.reading.object_end)
 
 
 class DoNothing:
