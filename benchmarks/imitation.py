@@ -41,7 +41,8 @@ from _results import RESULTS, arguments, numeric_environment, write_json
 
 ENV_ID = "hoap_actions/Imitate-v0"
 HELD_OUT_SEEDS = (91000, 91200)  # [first, stop): declared in docs/experiments/imitation.md, run once per robot
-POLICIES = {"markers": ("imitation-markers", {}), "oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
+POLICIES = {"camera": ("imitation-camera", {}), "markers": ("imitation-markers", {}),
+            "oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
 
 
 def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict[int, str | None], dict]:

@@ -15,7 +15,8 @@ moved and turned by the effect: the same at both of ``Imitate-v0``'s levels) and
 It then looks again and, while the episode lasts, tries once more from where the block is.
 Subclasses say where the intent comes from: :class:`ExecutionCeiling` takes the true one from the env
 (the oracle), so what it misses is what execution misses; :class:`MarkerImitation` reads it from the
-demonstration's recorded markers and block path with the action models (the oracle of vision).
+demonstration's recorded markers and block path with the action models (the oracle of vision);
+:class:`CameraImitation` watches the demonstration's camera frames, as a person would show them.
 """
 
 from __future__ import annotations
@@ -33,10 +34,12 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.imitation.reading import DemonstrationReading, read_markers
+from hoap_actions.imitation.watching import WatchedDemonstration, watch
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.policies.block_skills import BlockHand, run_up, wrap_quarter
 
-__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "ExecutionCeiling", "Intent", "MarkerImitation", "intent_of"]
+__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "CameraImitation", "ExecutionCeiling", "Intent", "MarkerImitation",
+           "intent_of"]
 
 logger = logging.getLogger(__name__)
 
@@ -199,6 +202,27 @@ class MarkerImitation(BlockImitation):
         if self.reading.action is None:
             return None
         return intent_of(self.reading.action, self.reading.object_start, self.reading.object_end)
+
+
+class CameraImitation(BlockImitation):
+    """Imitation from the demonstration as a camera filmed it (``env.get_wrapper_attr("demonstration")()``:
+    frames, the camera, its picture of the empty table), watched with the shipped action models
+    (:func:`~hoap_actions.imitation.watching.watch`: the tracker on the arm, the block's top face at both
+    ends). ``particles`` and ``seed`` are the tracker's."""
+
+    def __init__(self, env: gymnasium.Env, particles: int = 400, seed: int = 0) -> None:
+        super().__init__(env)
+        self._demonstration = env.get_wrapper_attr("demonstration")
+        self.models = load_default_models()
+        self.particles, self.seed = particles, seed
+        self.watched: WatchedDemonstration | None = None
+
+    def intent(self) -> Intent | None:
+        self.watched = watch(self.models, self._demonstration(), self.particles, self.seed)
+        reading = self.watched.reading
+        if reading.action is None:
+            return None
+        return intent_of(reading.action, reading.object_start, reading.object_end)
 
 
 class DoNothing:

@@ -42,3 +42,20 @@ def test_bad_images_are_refused():
         locate(np.zeros((10, 10, 3), np.uint8))
     with pytest.raises(InvalidInputError, match="plane_z"):
         ObjectLocator(DEMONSTRATOR_CAMERA, float("nan"))
+
+
+@pytest.mark.parametrize("xy, yaw_deg", [((0.0, 0.0), 0.0), ((0.12, -0.25), 20.0), ((-0.1, 0.3), -35.0),
+                                         ((0.05, 0.1), 60.0)])
+def test_the_top_face_gives_the_blocks_place_and_its_turn_modulo_a_quarter(scene, xy, yaw_deg):
+    scene.reset(np.array(xy), np.radians(yaw_deg))
+    size = scene.config.object_size
+    face = ObjectLocator(DEMONSTRATOR_CAMERA, size).top_face(scene.render(DEMONSTRATOR_CAMERA).rgb)
+    assert face is not None
+    assert np.linalg.norm(face.centre[:2] - xy) < 0.015 and face.centre[2] == pytest.approx(size)
+    quarter_error = np.angle(np.exp(4j * (face.yaw - np.radians(yaw_deg)))) / 4.0
+    assert abs(np.degrees(quarter_error)) < 6.0  # a face of 40-70 pixels at 320 x 240: 1.4-5.5 degrees off here
+    assert -np.pi / 4 <= face.yaw < np.pi / 4
+
+
+def test_no_block_no_top_face(scene):
+    assert ObjectLocator(DEMONSTRATOR_CAMERA, 0.05).top_face(scene.render_background(DEMONSTRATOR_CAMERA).rgb) is None

@@ -9,6 +9,8 @@ of its colour) and returns its centre in the scene frame, for the tracker to dra
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -16,15 +18,28 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.vision.body_model import Projector
 from hoap_actions.vision.edges import check_image
 
-__all__ = ["ObjectLocator"]
+__all__ = ["ObjectLocator", "TopFace"]
 
 # The demonstration block (demo_object.urdf, RGB 0.85 0.25 0.20) in OpenCV's HSV (hue 0-180): rendered at hue
 # 0-6 and saturation 190-200; the skin of the hands and head is at hue 12, saturation 85, the wooden table at
 # hue 16, saturation 106 (demonstration camera, validation recording).
 # (low, high); red wraps round hue 0
 BLOCK_HSV_RANGES = (((0, 150, 60), (8, 255, 255)), ((172, 150, 60), (180, 255, 255)))
+# The block's top face is lit from above: value 200 in HSV where its sides are at 128 (demonstration camera,
+# validation episodes of Imitate-v0); the pixels at or over this value are taken as the top face.
+TOP_FACE_MIN_VALUE = 170
+MIN_TOP_FACE_PX = 12  # a top face seen by fewer pixels (the hand over the block) gives no footprint
 MIN_BLOB_PX = 6  # a 5 cm block is about 190 px at 320 x 240; fewer than this is noise or a sliver behind the hand
 PLANE_GRID_M = 0.5  # m, half-size of the square of plane points the homography is fitted on
+
+
+@dataclass(frozen=True)
+class TopFace:
+    """The block's top face seen in an image: its ``centre`` (3,) m on the locator's plane and its turn
+    about the vertical, ``yaw`` rad in [-pi/4, pi/4) (a square face shows its turn modulo a quarter)."""
+
+    centre: np.ndarray
+    yaw: float
 
 
 class ObjectLocator:
@@ -56,6 +71,31 @@ class ObjectLocator:
         self._to_plane, _ = cv2.findHomography(pixels[seen], plane[seen, :2])
 
     def __call__(self, image: np.ndarray) -> np.ndarray | None:
+        found = self._blob(image)
+        if found is None:
+            return None
+        _, _, centroid = found
+        return self.to_plane(centroid[None])[0]
+
+    def top_face(self, image: np.ndarray) -> TopFace | None:
+        """The block's top face (the brightest pixels of its blob, lit from above) taken onto the plane
+        z = ``plane_z`` (make the locator at the top face's height), its centre and turn from the smallest
+        rectangle round it; None when fewer than :data:`MIN_TOP_FACE_PX` of it are seen."""
+        found = self._blob(image)
+        if found is None:
+            return None
+        blob, hsv, _ = found
+        v, u = np.nonzero(blob & (hsv[..., 2] >= TOP_FACE_MIN_VALUE))
+        if len(u) < MIN_TOP_FACE_PX:
+            return None
+        points = self.to_plane(np.column_stack([u, v]).astype(float))
+        (x, y), _, angle = cv2.minAreaRect(points[:, :2].astype(np.float32))
+        yaw = (np.radians(angle) + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        return TopFace(np.array([x, y, self.plane_z]), float(yaw))
+
+    def _blob(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The largest blob of the block's colour: its mask (H, W) bool, the image in HSV and its centroid
+        (u, v); None when no blob of :data:`MIN_BLOB_PX` is seen."""
         arr = check_image(image)
         if arr.ndim != 3 or arr.shape[:2] != (self.camera.height, self.camera.width):
             raise InvalidInputError(f"a colour image ({self.camera.height}, {self.camera.width}, 3) is needed; "
@@ -66,13 +106,13 @@ class ObjectLocator:
         mask = np.zeros(hsv.shape[:2], np.uint8)
         for low, high in self.hsv_ranges:
             mask |= cv2.inRange(hsv, low, high)
-        count, _, stats, centroids = cv2.connectedComponentsWithStats(mask)
+        count, labels, stats, centroids = cv2.connectedComponentsWithStats(mask)
         if count < 2:
             return None
         biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         if stats[biggest, cv2.CC_STAT_AREA] < MIN_BLOB_PX:
             return None
-        return self.to_plane(centroids[biggest][None])[0]
+        return labels == biggest, hsv, centroids[biggest]
 
     def to_plane(self, pixels: np.ndarray) -> np.ndarray:
         """The points (N, 3) of the plane z = ``plane_z`` that the camera sees at ``pixels`` (N, 2) (u, v)."""
