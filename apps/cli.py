@@ -162,6 +162,14 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _imitate(args: argparse.Namespace) -> int:
+    """``demo`` on ``Imitate-v0`` with the imitation policy (and, with ``--ceiling``, the execution ceiling)."""
+    reader = "imitation-markers" if args.from_markers else "imitation-camera"
+    args.policy = [reader, "imitation-oracle"] if args.ceiling else [reader]
+    args.env, args.models = "hoap_actions/Imitate-v0", None
+    return _demo(args)
+
+
 def _collect(args: argparse.Namespace) -> int:
     from hoap_actions.apps.collect import collect
 
@@ -392,6 +400,28 @@ def build_parser() -> argparse.ArgumentParser:
                                                   "wall times are printed, not written)")
     demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
     demo.set_defaults(func=_demo)
+
+    imitate = sub.add_parser("imitate", help="the robot watches a demonstration through a camera and does the same "
+                                             "to its own block (Imitate-v0), for N drawn demonstrations")
+    imitate.add_argument("--from-markers", action="store_true",
+                         help="read the demonstration from its recorded markers and block path instead of the camera "
+                              "frames (the oracle of vision)")
+    imitate.add_argument("--ceiling", action="store_true",
+                         help="also run the execution ceiling (told the true action and effect) on the same episodes")
+    imitate.add_argument("--robot", default="fixed_legs", choices=list(ROBOT_MODELS),
+                         help="fixed_legs: bolted at the pelvis (default, the measured one); full: free-standing")
+    imitate.add_argument("--episodes", type=_positive_int, default=10, help="demonstrations (default: %(default)s)")
+    imitate.add_argument("--seed", type=_seed, default=0, help="demonstrations and layouts from seeds S, S+1, ...")
+    imitate.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
+    imitate.add_argument("--video", type=_path, help="write an mp4 of one episode of the robot here (--film)")
+    imitate.add_argument("--film", type=_nonnegative_int, default=0, metavar="K",
+                         help="which episode --video and --snapshot show: K for seed S+K (default: 0)")
+    imitate.add_argument("--camera", default="closeup", choices=sorted(CAMERAS),
+                         help="the video's camera (default: %(default)s)")
+    imitate.add_argument("--snapshot", type=_path, help="write a PNG of that episode's first frame here")
+    imitate.add_argument("--json", type=_path, help="write per-episode results here")
+    imitate.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
+    imitate.set_defaults(func=_imitate, ray=None)
 
     col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, "
                                          "imitation)")

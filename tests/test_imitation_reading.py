@@ -3,6 +3,7 @@ the shipped models on one drawn demonstration of each action, bad input, and the
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace
 
 import gymnasium
@@ -124,3 +125,17 @@ def test_the_marker_policy_is_registered_and_imitates_a_push(env):
     result = run_episode(env, policy, SEEDS["push"])
     assert policy.reading.action == "push"
     assert result.success, result
+
+
+def test_the_imitate_command_runs_the_reading_beside_the_ceiling_and_writes_its_report(tmp_path, capsys):
+    from hoap_actions.apps.cli import main
+
+    report = tmp_path / "imitate.json"
+    assert main(["imitate", "--from-markers", "--ceiling", "--episodes", "1", "--seed", str(SEEDS["push"]),
+                 "--json", str(report)]) == 0
+    out = capsys.readouterr().out
+    assert "imitation-markers policy on hoap_actions/Imitate-v0 (fixed_legs robot): success rate 100.0%" in out
+    assert "imitation-oracle policy" in out
+    assert set(json.loads(report.read_text())["policies"]) == {"imitation-markers", "imitation-oracle"}
+    assert main(["imitate", "--episodes", "1", "--film", "1"]) == 2
+    assert "--film 1 is past the last episode" in capsys.readouterr().err
