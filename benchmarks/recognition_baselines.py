@@ -62,7 +62,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--models", type=Path, help="the project's models (default: the shipped ones)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes for the project's recognition")
     hmms = parser.add_argument_group("per-class HMMs (defaults chosen on validation)")
-    hmms.add_argument("--hmm-features", default="positions+displacements", choices=("displacements", "positions+displacements"))
+    hmms.add_argument("--hmm-features", default="positions+displacements",
+                      choices=("displacements", "positions+displacements"))
     hmms.add_argument("--hmm-states", type=int, default=10)
     hmms.add_argument("--hmm-stay-weight", type=float, default=2.0)
     hmms.add_argument("--hmm-iter", type=int, default=20, help="EM iterations")
