@@ -48,6 +48,7 @@ class EpisodeResult:
     perception_error_m: float | None = None
     path_deviation_m: dict[str, float] | None = None
     hand_error_m: float | None = None  # ee_delta: 95th percentile over steps of the hand's distance from its reference
+    recognised: str | None = None
 
 
 def run_episode(
@@ -88,7 +89,8 @@ def run_episode(
     deviations = policy.path_deviations() if hasattr(policy, "path_deviations") else None
     return EpisodeResult(seed, reason == "success", reason, steps, time.perf_counter() - start,
                          perception_error, deviations,
-                         float(np.percentile(hand_errors, 95)) if hand_errors else None)
+                         float(np.percentile(hand_errors, 95)) if hand_errors else None,
+                         policy.recognised() if hasattr(policy, "recognised") else None)
 
 
 def _hand_error_reader(env: gymnasium.Env) -> Callable[[dict[str, np.ndarray]], float] | None:

@@ -125,6 +125,12 @@ def main() -> None:
         for episode in summary["episodes"]:
             episode["action"] = actions[episode["seed"]]
             episode["read_from_markers"] = read[episode["seed"]]
+        readings = [e for e in summary["episodes"] if e["recognised"] is not None]
+        if readings:
+            right = sum(e["recognised"] == e["action"] for e in readings)
+            summary["recognised"] = {"right": right, "of": len(readings), "rate": right / len(readings),
+                                     "ci95": wilson_interval(right, len(readings))}
+            print(f"{name}: action recognised in {right} of {len(readings)}")
         document[name] = summary
         low, high = summary["success_ci95"]
         print(f"{name:>8} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "

@@ -203,6 +203,10 @@ class MarkerImitation(BlockImitation):
             return None
         return intent_of(self.reading.action, self.reading.object_start, self.reading.object_end)
 
+    def recognised(self) -> str:
+        """The action this episode's reading gave (``"not recognised"`` when none)."""
+        return self.reading.action or "not recognised"
+
 
 class CameraImitation(BlockImitation):
     """Imitation from the demonstration as a camera filmed it (``env.get_wrapper_attr("demonstration")()``:
@@ -223,6 +227,10 @@ class CameraImitation(BlockImitation):
         if reading.action is None:
             return None
         return intent_of(reading.action, reading.object_start, reading.object_end)
+
+    def recognised(self) -> str:
+        """The action this episode's watching gave (``"not recognised"`` when none)."""
+        return self.watched.reading.action or "not recognised"
 
 
 class DoNothing:
