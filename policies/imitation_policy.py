@@ -25,7 +25,7 @@ import logging
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
@@ -33,10 +33,12 @@ from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.imitation.reading import DemonstrationReading, read_markers
-from hoap_actions.imitation.watching import WatchedDemonstration, watch
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.policies.block_skills import BlockHand, run_up, wrap_quarter
+
+if TYPE_CHECKING:
+    from hoap_actions.imitation.reading import DemonstrationReading
+    from hoap_actions.imitation.watching import WatchedDemonstration
 
 __all__ = ["ACTIONS", "BlockImitation", "DoNothing", "CameraImitation", "ExecutionCeiling", "Intent", "MarkerImitation",
            "intent_of"]
@@ -197,6 +199,8 @@ class MarkerImitation(BlockImitation):
         self.reading: DemonstrationReading | None = None
 
     def intent(self) -> Intent | None:
+        from hoap_actions.imitation.reading import read_markers  # here: the registry's importers need no recognition
+
         shown = self._truth()
         self.reading = read_markers(self.models, shown.H, shown.O)
         if self.reading.action is None:
@@ -222,6 +226,8 @@ class CameraImitation(BlockImitation):
         self.watched: WatchedDemonstration | None = None
 
     def intent(self) -> Intent | None:
+        from hoap_actions.imitation.watching import watch  # here: the tracker is not imported by every command
+
         self.watched = watch(self.models, self._demonstration(), self.particles, self.seed)
         reading = self.watched.reading
         if reading.action is None:
