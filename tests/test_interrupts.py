@@ -18,6 +18,12 @@ DEMO = [sys.executable, "-m", "hoap_actions", "demo", "--episodes", "1000", "--w
 STOP_WITHIN_S = 3.0  # measured 0.2-0.3 s on 2 cores; the margin is for a loaded CI machine
 
 
+def _as_foreground_command() -> None:
+    """Start a child with Ctrl-C's default action, as a shell starts a command in the foreground: a
+    suite run as a background job of a non-interactive shell would otherwise hand down SIGINT ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _group_gone(pid: int, within: float) -> bool:
     deadline = time.monotonic() + within
     while time.monotonic() < deadline:
@@ -43,7 +49,8 @@ def cleanup():
 def test_a_signal_stops_the_sweep_at_once(tmp_path: Path, sig, after_s, cleanup):
     report = tmp_path / "report.json"
     proc = subprocess.Popen([*DEMO, "--json", str(report)], cwd=tmp_path, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_as_foreground_command)
     cleanup.append(proc)
     time.sleep(after_s)
     sent = time.monotonic()
@@ -92,6 +99,15 @@ def test_a_signal_while_the_command_line_imports_ends_it_as_one_at_work(sig):
     """The command line's own imports take about a second; a signal then exits 130 with one line, not
     by the signal with a traceback."""
     done = subprocess.run([sys.executable, "-c", _SIGNAL_DURING_IMPORT.format(sig=sig)], capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=120, preexec_fn=_as_foreground_command)
     assert done.returncode == 130, done.stderr[-1000:]
     assert "interrupted while starting" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_command_started_ignoring_ctrl_c_keeps_ignoring_it_while_it_imports():
+    """A background job of a non-interactive shell starts with SIGINT ignored; the command line respects
+    that in its imports as in its work, and goes on."""
+    done = subprocess.run([sys.executable, "-c", _SIGNAL_DURING_IMPORT.format(sig="SIGINT")], capture_output=True,
+                          text=True, timeout=120, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert done.returncode == 0, done.stderr[-1000:]
+    assert "usage: hoap-actions" in done.stdout

@@ -14,8 +14,10 @@ def _interrupted_while_starting(signum: int, frame: object) -> NoReturn:
 
 def run() -> int:
     """The command line, with Ctrl-C or SIGTERM during its second of imports ending it as during its
-    work (exit 130, one line, no traceback) instead of by the signal itself."""
-    handlers = {sig: signal.signal(sig, _interrupted_while_starting) for sig in (signal.SIGINT, signal.SIGTERM)}
+    work (exit 130, one line, no traceback) instead of by the signal itself. A signal the process was
+    started ignoring (SIGINT for a background job of a non-interactive shell) stays ignored throughout."""
+    handlers = {sig: signal.signal(sig, _interrupted_while_starting) for sig in (signal.SIGINT, signal.SIGTERM)
+                if signal.getsignal(sig) is not signal.SIG_IGN}
     try:
         from hoap_actions.apps.cli import main
     finally:
