@@ -65,8 +65,8 @@ def _checked_path(O: np.ndarray, frames: int) -> np.ndarray:
 def read_markers(models: DecodingModels, H: np.ndarray, O: np.ndarray) -> DemonstrationReading:
     """Read a demonstration from its markers ``H`` (T, M, 3) m and the block's path ``O`` (T, 6) (module
     docstring). ``models`` are fitted action models whose markers ``H`` has."""
+    O = _checked_path(O, len(H))  # before decoding, the costly part
     segments = models.decode(H)
-    O = _checked_path(O, len(H))
     start, end = O[0].copy(), O[-1].copy()
     class_ids = tuple(int(s.class_id) for s in segments)
     pieces = [s for s in segments if models.classes_[s.class_id].kind == MANIPULATION]

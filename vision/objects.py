@@ -74,7 +74,7 @@ class ObjectLocator:
         found = self._blob(image)
         if found is None:
             return None
-        _, _, centroid = found
+        _, _, _, centroid = found
         return self.to_plane(centroid[None])[0]
 
     def top_face(self, image: np.ndarray) -> TopFace | None:
@@ -84,8 +84,8 @@ class ObjectLocator:
         found = self._blob(image)
         if found is None:
             return None
-        blob, hsv, _ = found
-        v, u = np.nonzero(blob & (hsv[..., 2] >= TOP_FACE_MIN_VALUE))
+        labels, biggest, hsv, _ = found
+        v, u = np.nonzero((labels == biggest) & (hsv[..., 2] >= TOP_FACE_MIN_VALUE))
         if len(u) < MIN_TOP_FACE_PX:
             return None
         points = self.to_plane(np.column_stack([u, v]).astype(float))
@@ -93,9 +93,9 @@ class ObjectLocator:
         yaw = (np.radians(angle) + np.pi / 4) % (np.pi / 2) - np.pi / 4
         return TopFace(np.array([x, y, self.plane_z]), float(yaw))
 
-    def _blob(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """The largest blob of the block's colour: its mask (H, W) bool, the image in HSV and its centroid
-        (u, v); None when no blob of :data:`MIN_BLOB_PX` is seen."""
+    def _blob(self, image: np.ndarray) -> tuple[np.ndarray, int, np.ndarray, np.ndarray] | None:
+        """The largest blob of the block's colour: the components' labels (H, W), its label, the image in
+        HSV and its centroid (u, v); None when no blob of :data:`MIN_BLOB_PX` is seen."""
         arr = check_image(image)
         if arr.ndim != 3 or arr.shape[:2] != (self.camera.height, self.camera.width):
             raise InvalidInputError(f"a colour image ({self.camera.height}, {self.camera.width}, 3) is needed; "
@@ -112,7 +112,7 @@ class ObjectLocator:
         biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         if stats[biggest, cv2.CC_STAT_AREA] < MIN_BLOB_PX:
             return None
-        return labels == biggest, hsv, centroids[biggest]
+        return labels, biggest, hsv, centroids[biggest]
 
     def to_plane(self, pixels: np.ndarray) -> np.ndarray:
         """The points (N, 3) of the plane z = ``plane_z`` that the camera sees at ``pixels`` (N, 2) (u, v)."""
