@@ -11,8 +11,8 @@ on the validation seeds 90000-90099.
 
 Per policy: success rate with its 95 % Wilson interval, per demonstrated action too, falls, how episodes
 ended, the mean wall time per episode (on a shared, loaded machine); how well the overhead camera locates the
-block on the same resets; and, with ``markers``, how often the action read from the markers is the
-demonstrated one. Writes
+block on the same resets; and, for the policies that read the demonstration, how often the action they
+recognised is the demonstrated one. Writes
 ``results/imitation_<robot>.json`` (or ``--output``).
 """
 
@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import gymnasium
@@ -30,8 +31,6 @@ from scipy.spatial.transform import Rotation
 from hoap_actions.apps.episodes import compare_policies, summarise, wilson_interval
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.imitation.imitate_env import BLOCK_SIZE
-from hoap_actions.imitation.reading import read_markers
-from hoap_actions.models.shipped import load_default_models
 from hoap_actions.policies.block_skills import wrap_quarter
 from hoap_actions.policies.imitation_policy import ACTIONS
 from hoap_actions.vision.block import locate_block
@@ -45,22 +44,17 @@ POLICIES = {"camera": ("imitation-camera", {}), "markers": ("imitation-markers",
             "oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
 
 
-def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict[int, str | None], dict]:
-    """The action each seed's demonstration shows (the env's oracle, read after a reset), the action read
-    from its markers and block path (:func:`~hoap_actions.imitation.reading.read_markers`, shipped models)
-    and how well the overhead camera locates the block there (:func:`~hoap_actions.vision.block.locate_block`
-    at 320 x 240 against the simulator's pose: centre error in mm, turn error in degrees modulo a quarter
-    turn)."""
+def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict]:
+    """The action each seed's demonstration shows (the env's oracle, read after a reset) and how well the
+    overhead camera locates the block there (:func:`~hoap_actions.vision.block.locate_block` at 320 x 240
+    against the simulator's pose: centre error in mm, turn error in degrees modulo a quarter turn)."""
     env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta")
     parse, capture = env.get_wrapper_attr("parse_observation"), env.get_wrapper_attr("capture")
-    models = load_default_models()
-    actions, read, centre_mm, turn_deg = {}, {}, [], []
+    actions, centre_mm, turn_deg = {}, [], []
     try:
         for seed in seeds:
             obs, _ = env.reset(seed=seed)
-            shown = env.get_wrapper_attr("true_demonstration")()
-            actions[seed] = shown.action
-            read[seed] = read_markers(models, shown.H, shown.O).action
+            actions[seed] = env.get_wrapper_attr("true_demonstration")().action
             view, truth = capture("overhead", 320, 240), parse(obs)
             found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE)
             if found is None:
@@ -75,7 +69,7 @@ def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict[int, str 
                                     "max": float(np.max(centre_mm))},
                 "turn_error_deg": {"median": float(np.median(turn_deg)), "p95": float(np.percentile(turn_deg, 95)),
                                    "max": float(np.max(turn_deg))}}
-    return actions, read, location
+    return actions, location
 
 
 def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
@@ -104,33 +98,26 @@ def main() -> None:
     results = compare_policies(ENV_ID, {name: POLICIES[name] for name in args.policies}, seeds,
                                workers=args.workers, robot=args.robot)
     wall = time.perf_counter() - start
-    actions, read, location = reset_pass(seeds, args.robot)
+    actions, location = reset_pass(seeds, args.robot)
     document = {"env": ENV_ID, "level": "mapped", "seeds": list(args.seeds), "robot": args.robot,
                 "workers": args.workers, "wall_s": wall, "environment": numeric_environment(None),
                 "block_location": location}
     print(f"block located on {location['located']} of {location['of']} resets: centre error median "
           f"{location['centre_error_mm']['median']:.2f} mm (max {location['centre_error_mm']['max']:.2f}), turn "
           f"{location['turn_error_deg']['median']:.1f} deg (max {location['turn_error_deg']['max']:.1f})")
-    right = sum(read[seed] == actions[seed] for seed in seeds)
-    document["read_from_markers"] = {
-        "right": right, "of": len(seeds), "rate": right / len(seeds), "ci95": wilson_interval(right, len(seeds)),
-        "confusion": {f"{a} as {b}": sum(actions[s] == a and read[s] == b for s in seeds)
-                      for a in ACTIONS for b in (*ACTIONS, None) if a != b
-                      and any(actions[s] == a and read[s] == b for s in seeds)}}
-    print(f"action read from the markers: {right} of {len(seeds)}; confusions "
-          f"{document['read_from_markers']['confusion']}")
     for name, episodes in results.items():
         summary = summarise(episodes)
         summary["by_action"] = by_action(episodes, actions)
         for episode in summary["episodes"]:
             episode["action"] = actions[episode["seed"]]
-            episode["read_from_markers"] = read[episode["seed"]]
         readings = [e for e in summary["episodes"] if e["recognised"] is not None]
         if readings:
             right = sum(e["recognised"] == e["action"] for e in readings)
+            confusion = Counter(f"{e['action']} as {e['recognised']}" for e in readings
+                                if e["recognised"] != e["action"])
             summary["recognised"] = {"right": right, "of": len(readings), "rate": right / len(readings),
-                                     "ci95": wilson_interval(right, len(readings))}
-            print(f"{name}: action recognised in {right} of {len(readings)}")
+                                     "ci95": wilson_interval(right, len(readings)), "confusion": dict(confusion)}
+            print(f"{name}: action recognised in {right} of {len(readings)}; confusions {dict(confusion)}")
         document[name] = summary
         low, high = summary["success_ci95"]
         print(f"{name:>8} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "
