@@ -13,7 +13,7 @@ DMP) and :mod:`hoap_actions.primitives.baselines.mixture_regression` (GMR). Each
 with the PHMM's posture model (its shoulder and elbow from its own hand), to tell the posture model's
 share from the mean model's. Differences are paired by recording (same recording, same test locations).
 
-    python benchmarks/synthesis_baselines.py [--seeds 5 6 7] [--data DIR] [--figure PNG]
+    python benchmarks/synthesis_baselines.py [--seeds 5 6 7] [--jobs 2] [--data DIR] [--figure PNG]
     python benchmarks/synthesis_baselines.py --figure-only JSON [--figure PNG]
 
 Seeds: ``approach-grid`` seed 0 is the validation recording (the candidate lists were set looking at
@@ -25,6 +25,7 @@ Writes ``results/synthesis_baselines.json`` (or ``--output``) and the error maps
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import textwrap
@@ -67,7 +68,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--figure", type=Path, default=None,
                         help=f"error maps to write (default: {FIGURE} for the held-out seeds, else beside the JSON)")
     parser.add_argument("--figure-only", type=Path, metavar="JSON", help="only redraw the figure from this JSON")
-    return parser.parse_args(argv)
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="processes, each scoring one (recording, training grid) at a time; the figures do not "
+                             "depend on it")
+    args = parser.parse_args(argv)
+    if not 1 <= args.jobs <= (os.cpu_count() or 1):
+        parser.error(f"--jobs must be in 1..{os.cpu_count() or 1} (this machine's CPUs); got {args.jobs}")
+    return args
 
 
 def baseline_class(name: str) -> type:
@@ -218,21 +225,52 @@ def figure_path(given: Path | None, seeds: list[int], output: Path) -> Path:
     return given or (FIGURE if set(seeds) <= set(HELD_OUT) else output.with_suffix(".png"))
 
 
-def evaluate_recording(path: Path) -> tuple[dict, object]:
+def human_error(path: Path) -> dict:
+    """The demonstrator's own leave-one-out error at each test location of one recording (cm)."""
     import numpy as np
 
     from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.primitives.evaluation.grid_synthesis import grid_data
 
+    loo = (data := grid_data(load_demonstrations(path))).as_map(data.human_loo)
+    return {"leave_one_out_mean": float(loo.mean() * 100), "leave_one_out_map": np.round(loo * 100, 3).tolist()}
+
+
+def evaluate_task(task: tuple[Path, str]) -> dict:
+    """Every method on one training grid of one recording (a job of :func:`evaluate_recordings`)."""
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.evaluation.grid_synthesis import grid_data
+
+    path, grid = task
     data = grid_data(load_demonstrations(path))
-    loo = data.as_map(data.human_loo)
-    out: dict = {"data": str(path), "human_cm": {"leave_one_out_mean": float(loo.mean() * 100),
-                                                 "leave_one_out_map": np.round(loo * 100, 3).tolist()}}
-    for grid in TRAIN_GRIDS:
-        out[grid] = evaluate_grid(data, grid)
-        out[grid]["training_cells"] = [list(k) for k in phmm.train_locations(data, grid)]
-        print(f"  {grid}: " + "; ".join(f"{n} {out[grid][n]['mean_cm']:.3f}" for n in methods()) + " cm", flush=True)
-    return out, data
+    out = evaluate_grid(data, grid)
+    out["training_cells"] = [list(k) for k in phmm.train_locations(data, grid)]
+    return out
+
+
+def _worker_setup() -> None:
+    """The workers import what they need with their first job."""
+
+
+def evaluate_recordings(paths: dict[int, Path], jobs: int) -> dict:
+    """Per recording: the demonstrator's error and every training grid's methods; the (recording, grid)
+    jobs run on ``jobs`` processes (:func:`hoap_actions.parallel.ordered_map`) when ``jobs`` > 1. The 3x3
+    grids go first: they take several times as long as the 2x2 ones."""
+    tasks = [(seed, grid) for grid in sorted(TRAIN_GRIDS, key=lambda g: g != "3x3") for seed in paths]
+    calls = [(paths[seed], grid) for seed, grid in tasks]
+    if jobs > 1:
+        from hoap_actions.parallel import ordered_map
+
+        results = ordered_map(evaluate_task, calls, _worker_setup, workers=jobs)
+    else:
+        results = map(evaluate_task, calls)
+    per_recording: dict = {str(seed): {"data": str(path), "human_cm": human_error(path)}
+                           for seed, path in paths.items()}
+    for (seed, grid), out in zip(tasks, results):
+        per_recording[str(seed)][grid] = out
+        print(f"  seed {seed} {grid}: " + "; ".join(f"{n} {out[n]['mean_cm']:.3f}" for n in methods()) + " cm",
+              flush=True)
+    return {seed: {key: run[key] for key in ("data", "human_cm", *TRAIN_GRIDS)} for seed, run in per_recording.items()}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -245,12 +283,12 @@ def main(argv: list[str] | None = None) -> dict:
         figure(document, figure_path(args.figure, document["protocol"]["seeds"], args.figure_only))
         return document
     started, cpu_started = time.perf_counter(), time.process_time()
-    paths = [ensure_recording("approach-grid", seed, args.data) for seed in args.seeds]
-    per_recording, data = {}, None
-    for seed, path in zip(args.seeds, paths):
-        print(f"approach-grid seed {seed}:", flush=True)
-        per_recording[str(seed)], recording = evaluate_recording(path)
-        data = data or recording
+    paths = {seed: ensure_recording("approach-grid", seed, args.data) for seed in args.seeds}
+    per_recording = evaluate_recordings(paths, args.jobs)
+    from hoap_actions.demonstration.datasets import load_demonstrations
+    from hoap_actions.primitives.evaluation.grid_synthesis import grid_data
+
+    data = grid_data(load_demonstrations(paths[args.seeds[0]]))
     import gmr
     import movement_primitives
 
@@ -280,7 +318,8 @@ def main(argv: list[str] | None = None) -> dict:
     document["environment"] = {**numeric_environment(args.threads, movement_primitives=movement_primitives.__version__,
                                                      gmr=gmr.__version__),
                                "commit": commit or "unknown", "runtime_s": round(time.perf_counter() - started, 1),
-                               "cpu_s": round(time.process_time() - cpu_started, 1)}
+                               "cpu_s": round(time.process_time() - cpu_started, 1),
+                               "jobs": args.jobs}
     write_json(args.output, document)
     figure(document, figure_path(args.figure, args.seeds, args.output))
     return document
