@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import functools
 import json
 import logging
 import signal
@@ -20,7 +19,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from hoap_actions import ENV_IDS, __version__
-from hoap_actions.apps.episodes import compare_policies, film_episode, summarise
+from hoap_actions.apps.episode_commands import demo_command, imitate_command
 from hoap_actions.apps.videos import write_video
 from hoap_actions.demonstration.bodies import DEMONSTRATORS
 from hoap_actions.envs.robot import ROBOT_MODELS
@@ -28,7 +27,7 @@ from hoap_actions.envs.scene import CAMERAS
 from hoap_actions.errors import HoapActionsError, InvalidInputError
 from hoap_actions.outputs import claimed_file
 from hoap_actions.parallel import LOCAL_RAY, check_ray_address
-from hoap_actions.seeds import MAX_SEED, check_seed
+from hoap_actions.seeds import MAX_SEED
 
 EXIT_USAGE = 2  # a user's mistake or a bad file, as argparse uses it
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
@@ -103,71 +102,6 @@ def _ray_option(parser: argparse.ArgumentParser, what: str) -> None:
                         help=f"run the {what} on Ray (pip install 'hoap-actions[ray]'): alone, a Ray instance on this "
                              "machine; with an ADDRESS (auto, ray://head:10001), that cluster. --workers then sets the "
                              "actors (default: one per CPU of the cluster); the output is the same")
-
-
-def _demo(args: argparse.Namespace) -> int:
-    from hoap_actions.policies.registry import policy_class
-
-    names = list(dict.fromkeys(args.policy))
-    classes = {name: policy_class(name, args.env) for name in names}
-    if len({c.control_mode for c in classes.values()}) > 1:
-        raise InvalidInputError(f"policies {names} act through different control modes; run them separately")
-    if args.models is not None and "phmm" not in names:
-        raise InvalidInputError("--models is for the phmm policy; add --policy phmm or leave --models out")
-    if args.models is not None:  # read once here: a bad directory is one line, not a broken worker pool
-        from hoap_actions.primitives.models.action_models import ActionModels
-
-        ActionModels.load(args.models)
-    kwargs = {name: ({"models": str(args.models)} if name == "phmm" and args.models is not None else {})
-              for name in names}
-    check_seed(args.seed, count=args.episodes)
-    last_seed = args.seed + args.episodes - 1
-    if args.film >= args.episodes:
-        raise InvalidInputError(f"--film {args.film} is past the last episode; accepted: 0..{args.episodes - 1}")
-    with contextlib.ExitStack() as outputs:  # claimed before the first episode, published at the end
-        claim = {
-            name: outputs.enter_context(claimed_file(path, args.overwrite, what=name)) if path else None
-            for name, path in (("video", args.video), ("snapshot", args.snapshot), ("report", args.json))
-        }
-        results = compare_policies(args.env, {name: (name, kwargs[name]) for name in names},
-                                   range(args.seed, last_seed + 1), workers=args.workers, robot=args.robot,
-                                   ray_address=args.ray)
-        if claim["video"] or claim["snapshot"]:  # episodes depend on their seed alone: the chosen one again, filmed
-            film_episode(args.env, functools.partial(classes[names[0]], **kwargs[names[0]]), args.seed + args.film,
-                         classes[names[0]].control_mode, video=claim["video"], snapshot=claim["snapshot"],
-                         camera=args.camera, robot=args.robot)
-        summaries = {name: summarise(episodes) for name, episodes in results.items()}
-        if claim["report"]:  # without wall times: the same file whatever --workers
-            report = {"env": args.env, "robot": args.robot, "seeds": [args.seed, last_seed],
-                      "policies": {name: summarise(episodes, timings=False) for name, episodes in results.items()}}
-            claim["report"].write_text(json.dumps(report, indent=2) + "\n")
-    for name, summary in summaries.items():
-        low, high = summary["success_ci95"]
-        print(f"{name} policy on {args.env} ({args.robot} robot): success rate {summary['success_rate']:.1%} (95 % "
-              f"interval {low:.0%}-{high:.0%}) "
-              f"over {args.episodes} episodes (seeds {args.seed}..{last_seed}), falls: {summary['falls']}, "
-              f"mean episode {summary['mean_wall_s']:.1f} s")
-        for reason, count in summary["reasons"].items():
-            print(f"  {reason}: {count}")
-        if "perception_error_m" in summary and summary["perception_error_m"]["max"] is not None:
-            print(f"  largest perception error of a target peg or hole: "
-                  f"{1000 * summary['perception_error_m']['max']:.2f} mm")
-    if args.video:
-        print(f"video of episode {args.film} ({names[0]}, seed {args.seed + args.film}, camera {args.camera}): "
-              f"{args.video}")
-    if args.snapshot:
-        print(f"picture of episode {args.film} ({names[0]}, seed {args.seed + args.film}): {args.snapshot}")
-    if args.json:
-        print(f"results: {args.json}")
-    return 0
-
-
-def _imitate(args: argparse.Namespace) -> int:
-    """``demo`` on ``Imitate-v0`` with the imitation policy (and, with ``--ceiling``, the execution ceiling)."""
-    reader = "imitation-markers" if args.from_markers else "imitation-camera"
-    args.policy = [reader, "imitation-oracle"] if args.ceiling else [reader]
-    args.env, args.models = "hoap_actions/Imitate-v0", None
-    return _demo(args)
 
 
 def _collect(args: argparse.Namespace) -> int:
@@ -399,7 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--json", type=_path, help="write per-episode results here (the same file whatever --workers; "
                                                   "wall times are printed, not written)")
     demo.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
-    demo.set_defaults(func=_demo)
+    demo.set_defaults(func=demo_command)
 
     imitate = sub.add_parser("imitate", help="the robot watches a demonstration through a camera and does the same "
                                              "to its own block (Imitate-v0), for N drawn demonstrations")
@@ -412,6 +346,15 @@ def build_parser() -> argparse.ArgumentParser:
                          help="fixed_legs: bolted at the pelvis (default, the measured one); full: free-standing")
     imitate.add_argument("--episodes", type=_positive_int, default=10, help="demonstrations (default: %(default)s)")
     imitate.add_argument("--seed", type=_seed, default=0, help="demonstrations and layouts from seeds S, S+1, ...")
+    imitate.add_argument("--demos", type=_path, help="replay this recording's demonstrations (.h5, from the record "
+                                                     "command) instead of drawing them; layouts from seeds S, S+1, ...")
+    imitate.add_argument("--episode", type=_nonnegative_int, nargs="+", metavar="K",
+                         help="which episodes of --demos to replay (default: all of them)")
+    imitate.add_argument("--level", default="mapped", choices=["mapped", "shifted"],
+                         help="mapped: the robot's block starts where the person's did (default); shifted: elsewhere, "
+                              "the same displacement and turn asked of it")
+    imitate.add_argument("--demonstrator", choices=sorted(DEMONSTRATORS),
+                         help="who demonstrates (default: drawn from each seed)")
     imitate.add_argument("--workers", type=_positive_int, default=1, help="processes running episodes (same results)")
     imitate.add_argument("--video", type=_path, help="write an mp4 of one episode of the robot here (--film)")
     imitate.add_argument("--film", type=_nonnegative_int, default=0, metavar="K",
@@ -421,7 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
     imitate.add_argument("--snapshot", type=_path, help="write a PNG of that episode's first frame here")
     imitate.add_argument("--json", type=_path, help="write per-episode results here")
     imitate.add_argument("--overwrite", action="store_true", help="replace existing --video, --snapshot, --json files")
-    imitate.set_defaults(func=_imitate, ray=None)
+    imitate.set_defaults(func=imitate_command, ray=None)
 
     col = sub.add_parser("collect", help="run a policy and save its episodes as a Minari dataset (offline RL, "
                                          "imitation)")

@@ -16,7 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 import hoap_actions  # noqa: F401  (registers the environments)
-from hoap_actions.apps.videos import write_video
+from hoap_actions.apps.videos import side_by_side, write_video
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.parallel import ordered_map
 from hoap_actions.seeds import check_seed
@@ -49,14 +49,19 @@ class EpisodeResult:
     path_deviation_m: dict[str, float] | None = None
     hand_error_m: float | None = None  # ee_delta: 95th percentile over steps of the hand's distance from its reference
     recognised: str | None = None
+    reset_s: float | None = None  # wall time of env.reset (an imitation env performs its demonstration there)
+    reading_s: float | None = None  # wall time the policy spent reading a demonstration (reading_s())
 
 
 def run_episode(
-    env: gymnasium.Env, policy: Policy, seed: int, frames: list[np.ndarray] | None = None
+    env: gymnasium.Env, policy: Policy, seed: int, frames: list[np.ndarray] | None = None,
+    options: dict[str, Any] | None = None,
 ) -> EpisodeResult:
-    """One episode on the layout drawn from ``seed``; appends rendered frames if a list is given."""
+    """One episode on the layout drawn from ``seed`` (``options`` go to ``env.reset``, e.g. the recorded
+    demonstration ``Imitate-v0`` replays); appends rendered frames if a list is given."""
     start = time.perf_counter()
-    obs, info = env.reset(seed=seed)
+    obs, info = env.reset(seed=seed, options=options)
+    reset_s = time.perf_counter() - start
     truth = env.get_wrapper_attr("parse_observation")(obs) if hasattr(policy, "located") else None
     policy.reset(obs, info)
     perception_error = _perception_error(policy.located(), truth) if truth is not None else None
@@ -90,7 +95,8 @@ def run_episode(
     return EpisodeResult(seed, reason == "success", reason, steps, time.perf_counter() - start,
                          perception_error, deviations,
                          float(np.percentile(hand_errors, 95)) if hand_errors else None,
-                         policy.recognised() if hasattr(policy, "recognised") else None)
+                         policy.recognised() if hasattr(policy, "recognised") else None, reset_s,
+                         policy.reading_s() if hasattr(policy, "reading_s") else None)
 
 
 def _hand_error_reader(env: gymnasium.Env) -> Callable[[dict[str, np.ndarray]], float] | None:
@@ -120,18 +126,26 @@ def film_episode(
     snapshot: Path | None = None,
     camera: str = "closeup",
     robot: str = "full",
+    env_kwargs: dict[str, Any] | None = None,
+    options: dict[str, Any] | None = None,
 ) -> EpisodeResult:
     """One episode filmed from ``camera``: an mp4 of it at ``video`` and, at ``snapshot``, the policy's
-    own picture of it (``figure()``, e.g. the PHMM policy's Fig. 9) or else its first frame. Pass the
+    own picture of it (``figure()``, e.g. the PHMM policy's Fig. 9) or else its first frame. A policy that
+    was shown a demonstration (``shown_frames()``, the imitation policies) has it played beside the robot. Pass the
     partial paths that :func:`hoap_actions.outputs.claimed_file` yields, so the outputs are checked
-    before the episode runs."""
+    before the episode runs. ``env_kwargs`` go to ``gymnasium.make``, ``options`` to ``env.reset``."""
     check_seed(seed)
-    env = gymnasium.make(env_id, render_mode="rgb_array", camera=camera, control_mode=control_mode, robot=robot)
+    env = gymnasium.make(env_id, render_mode="rgb_array", camera=camera, control_mode=control_mode, robot=robot,
+                         **(env_kwargs or {}))
     try:
         policy = policy_factory(env)
         frames: list[np.ndarray] = []
-        result = run_episode(env, policy, seed, frames)
+        result = run_episode(env, policy, seed, frames, options)
         figure = policy.figure() if hasattr(policy, "figure") else None
+        if video and hasattr(policy, "shown_frames"):  # what it was shown, played beside what it did
+            shown = policy.shown_frames()
+            demonstration_fps = env.get_wrapper_attr("demonstration")().fps
+            frames = side_by_side(shown, demonstration_fps, frames, env.metadata["render_fps"])
     finally:
         env.close()
     import imageio.v3 as iio
@@ -159,13 +173,16 @@ def _start_worker(env_id: str, policies: dict[str, tuple[str, dict]], robot: str
     _WORKER.update(env=env, policies={name: classes[name](env, **kwargs) for name, (_, kwargs) in policies.items()})
 
 
-def _run_seed(seed: int) -> dict[str, EpisodeResult]:
-    return {name: run_episode(_WORKER["env"], policy, seed) for name, policy in _WORKER["policies"].items()}
+def _run_seed(job: tuple[int, dict[str, Any] | None]) -> dict[str, EpisodeResult]:
+    seed, options = job
+    return {name: run_episode(_WORKER["env"], policy, seed, options=options)
+            for name, policy in _WORKER["policies"].items()}
 
 
 def compare_policies(
     env_id: str, policies: dict[str, tuple[str, dict]], seeds: Sequence[int], workers: int = 1, robot: str = "full",
     ray_address: str | None = None, env_kwargs: dict[str, Any] | None = None,
+    options: Sequence[dict[str, Any] | None] | None = None,
 ) -> dict[str, list[EpisodeResult]]:
     """Every policy on every seed's layout, interleaved (seed by seed, policy after policy, in one
     env per worker), so machine load falls alike on all. ``policies`` maps a label to a policy name
@@ -173,10 +190,14 @@ def compare_policies(
     depend on their seed alone, so ``workers`` processes, or Ray actors with ``ray_address`` (see
     :func:`hoap_actions.parallel.ordered_map`), give the serial results. ``robot`` is the env's robot
     model (``"full"`` or ``"fixed_legs"``); ``env_kwargs`` go to ``gymnasium.make`` besides it (e.g.
-    ``{"ik_period": 4}``)."""
+    ``{"ik_period": 4}``); ``options``, one per seed, go to its ``env.reset`` (e.g.
+    ``{"demonstration": (path, episode)}`` on ``Imitate-v0``)."""
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise InvalidInputError("seeds is empty; give at least one")
+    options = [None] * len(seeds) if options is None else list(options)
+    if len(options) != len(seeds):
+        raise InvalidInputError(f"options must give one entry per seed ({len(seeds)}); got {len(options)}")
     for s in seeds:
         check_seed(s)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
@@ -185,11 +206,12 @@ def compare_policies(
     if workers == 1 and ray_address is None:
         _start_worker(*initargs)
         try:
-            rows = [_run_seed(s) for s in tqdm(seeds, desc="layouts", disable=not sys.stderr.isatty())]
+            rows = [_run_seed(job) for job in tqdm(list(zip(seeds, options)), desc="layouts",
+                                                    disable=not sys.stderr.isatty())]
         finally:
             _WORKER.pop("env").close()
     else:
-        results = ordered_map(_run_seed, seeds, _start_worker, initargs, workers, ray_address)
+        results = ordered_map(_run_seed, list(zip(seeds, options)), _start_worker, initargs, workers, ray_address)
         rows = list(tqdm(results, total=len(seeds), desc="layouts", disable=not sys.stderr.isatty()))
     return {name: [row[name] for row in rows] for name in policies}
 
@@ -224,7 +246,8 @@ def summarise(results: list[EpisodeResult], timings: bool = True) -> dict[str, A
     if not timings:
         del summary["mean_wall_s"]
         for episode in summary["episodes"]:
-            del episode["wall_s"]
+            for key in ("wall_s", "reset_s", "reading_s"):
+                del episode[key]
     return summary
 
 

@@ -29,32 +29,53 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.apps.episodes import compare_policies, summarise, wilson_interval
+from hoap_actions.demonstration.bodies import DEMONSTRATORS
+from hoap_actions.envs.hoap_env import HoapEnv
 from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.imitation.imitate_env import BLOCK_SIZE
 from hoap_actions.policies.block_skills import wrap_quarter
-from hoap_actions.policies.imitation_policy import ACTIONS
+from hoap_actions.policies.imitation_policy import ACTIONS, Intent, frequent_intent
 from hoap_actions.vision.block import locate_block
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import RESULTS, arguments, numeric_environment, write_json
 
 ENV_ID = "hoap_actions/Imitate-v0"
+CONTROL_FPS = float(HoapEnv.metadata["render_fps"])  # env steps per second
 HELD_OUT_SEEDS = (91000, 91200)  # [first, stop): declared in docs/experiments/imitation.md, run once per robot
+VALIDATION_SEEDS = (90000, 90100)  # [first, stop): every choice, and the frequent-action baseline's fit
 POLICIES = {"camera": ("imitation-camera", {}), "markers": ("imitation-markers", {}),
-            "oracle": ("imitation-oracle", {}), "nothing": ("nothing", {})}
+            "oracle": ("imitation-oracle", {}), "frequent": ("imitation-frequent", {}), "nothing": ("nothing", {})}
 
 
-def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict]:
-    """The action each seed's demonstration shows (the env's oracle, read after a reset) and how well the
-    overhead camera locates the block there (:func:`~hoap_actions.vision.block.locate_block` at 320 x 240
-    against the simulator's pose: centre error in mm, turn error in degrees modulo a quarter turn)."""
-    env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta")
+def fit_frequent(seeds: range, robot: str, env_kwargs: dict) -> Intent:
+    """The frequent-action baseline's intent (:func:`frequent_intent`) from the true demonstrations of
+    ``seeds`` (the validation seeds: the baseline sees none of the evaluation's)."""
+    env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta", **env_kwargs)
+    shown = []
+    try:
+        for seed in seeds:
+            env.reset(seed=seed)
+            truth = env.get_wrapper_attr("true_demonstration")()
+            shown.append((truth.action, truth.object_start, truth.object_end))
+    finally:
+        env.close()
+    return frequent_intent(shown)
+
+
+def reset_pass(seeds: range, robot: str, env_kwargs: dict) -> tuple[dict[int, str], dict[int, float], dict]:
+    """The action each seed's demonstration shows and its length in seconds (the env's oracle, read after
+    a reset) and how well the overhead camera locates the block there
+    (:func:`~hoap_actions.vision.block.locate_block` at 320 x 240 against the simulator's pose: centre
+    error in mm, turn error in degrees modulo a quarter turn)."""
+    env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta", **env_kwargs)
     parse, capture = env.get_wrapper_attr("parse_observation"), env.get_wrapper_attr("capture")
-    actions, centre_mm, turn_deg = {}, [], []
+    actions, seconds, centre_mm, turn_deg = {}, {}, [], []
     try:
         for seed in seeds:
             obs, _ = env.reset(seed=seed)
-            actions[seed] = env.get_wrapper_attr("true_demonstration")().action
+            truth = env.get_wrapper_attr("true_demonstration")()
+            actions[seed], seconds[seed] = truth.action, len(truth.H) / truth.fps
             view, truth = capture("overhead", 320, 240), parse(obs)
             found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE)
             if found is None:
@@ -69,7 +90,7 @@ def reset_pass(seeds: range, robot: str) -> tuple[dict[int, str], dict]:
                                     "max": float(np.max(centre_mm))},
                 "turn_error_deg": {"median": float(np.median(turn_deg)), "p95": float(np.percentile(turn_deg, 95)),
                                    "max": float(np.max(turn_deg))}}
-    return actions, location
+    return actions, seconds, location
 
 
 def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
@@ -84,24 +105,55 @@ def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
     return table
 
 
+def timing(episodes: list, seconds: dict[int, float], control_fps: float) -> dict:
+    """Per episode of a policy that reads its demonstration: the reading's and the execution's wall time
+    (the episode without the env's reset and the reading) and how fast the loop runs against the real
+    time it stands for (the demonstration's length plus the robot's episode's, over reading plus execution)."""
+    reading = np.array([e.reading_s for e in episodes])
+    execution = np.array([e.wall_s - e.reset_s - e.reading_s for e in episodes])
+    shown = np.array([seconds[e.seed] + e.steps / control_fps for e in episodes])
+    factor = shown / (reading + execution)
+    return {"reading_s": float(reading.mean()), "execution_s": float(execution.mean()),
+            "demonstration_s": float(np.mean([seconds[e.seed] for e in episodes])),
+            "real_time_factor": {"median": float(np.median(factor)), "min": float(factor.min()),
+                                 "overall": float(shown.sum() / (reading + execution).sum())}}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("imitation.json")])
     parser.add_argument("--seeds", type=int, nargs=2, default=HELD_OUT_SEEDS, metavar=("FIRST", "STOP"))
     parser.add_argument("--robot", default="fixed_legs", choices=list(ROBOT_MODELS))
+    parser.add_argument("--level", default="mapped", choices=["mapped", "shifted"])
+    parser.add_argument("--demonstrator", choices=sorted(DEMONSTRATORS), help="who demonstrates (default: drawn)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--policies", nargs="+", choices=list(POLICIES), default=list(POLICIES))
+    parser.add_argument("--fit-seeds", type=int, nargs=2, default=VALIDATION_SEEDS, metavar=("FIRST", "STOP"),
+                        help="the demonstrations the frequent-action baseline is fitted on (default: validation)")
     args = parser.parse_args()
     if args.output == RESULTS / "imitation.json":
         args.output = RESULTS / f"imitation_{args.robot}.json"
     seeds = range(*args.seeds)
+    if set(seeds) & set(range(*args.fit_seeds)):
+        parser.error("--fit-seeds overlap --seeds: the frequent-action baseline would see the demonstrations it is "
+                     "scored on")
+    env_kwargs = {"level": args.level, "demonstrator": args.demonstrator}
+    policies = {name: POLICIES[name] for name in args.policies}
     start = time.perf_counter()
-    results = compare_policies(ENV_ID, {name: POLICIES[name] for name in args.policies}, seeds,
-                               workers=args.workers, robot=args.robot)
+    if "frequent" in policies:
+        intent = fit_frequent(range(*args.fit_seeds), args.robot, env_kwargs)
+        policies["frequent"] = ("imitation-frequent", {"intent": intent})
+        print(f"frequent-action baseline: {intent.action}, displacement {np.round(intent.displacement * 100, 2)} cm, "
+              f"turn {np.degrees(intent.turn):.1f} deg")
+    results = compare_policies(ENV_ID, policies, seeds, workers=args.workers, robot=args.robot, env_kwargs=env_kwargs)
     wall = time.perf_counter() - start
-    actions, location = reset_pass(seeds, args.robot)
-    document = {"env": ENV_ID, "level": "mapped", "seeds": list(args.seeds), "robot": args.robot,
-                "workers": args.workers, "wall_s": wall, "environment": numeric_environment(None),
-                "block_location": location}
+    actions, seconds, location = reset_pass(seeds, args.robot, env_kwargs)
+    document = {"env": ENV_ID, "level": args.level, "demonstrator": args.demonstrator or "drawn",
+                "seeds": list(args.seeds), "robot": args.robot, "workers": args.workers, "wall_s": wall,
+                "environment": numeric_environment(None), "block_location": location}
+    if "frequent" in policies:
+        intent = policies["frequent"][1]["intent"]
+        document["frequent_intent"] = {"fit_seeds": list(args.fit_seeds), "action": intent.action,
+                                       "displacement_m": intent.displacement.tolist(), "turn_rad": intent.turn}
     print(f"block located on {location['located']} of {location['of']} resets: centre error median "
           f"{location['centre_error_mm']['median']:.2f} mm (max {location['centre_error_mm']['max']:.2f}), turn "
           f"{location['turn_error_deg']['median']:.1f} deg (max {location['turn_error_deg']['max']:.1f})")
@@ -118,6 +170,12 @@ def main() -> None:
             summary["recognised"] = {"right": right, "of": len(readings), "rate": right / len(readings),
                                      "ci95": wilson_interval(right, len(readings)), "confusion": dict(confusion)}
             print(f"{name}: action recognised in {right} of {len(readings)}; confusions {dict(confusion)}")
+        if episodes[0].reading_s is not None:
+            summary["timing"] = timing(episodes, seconds, CONTROL_FPS)
+            t = summary["timing"]
+            print(f"{name}: reading {t['reading_s']:.1f} s, execution {t['execution_s']:.1f} s per episode; the loop "
+                  f"runs at {t['real_time_factor']['overall']:.2f}x real time (demonstrations of "
+                  f"{t['demonstration_s']:.1f} s)")
         document[name] = summary
         low, high = summary["success_ci95"]
         print(f"{name:>8} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "

@@ -14,16 +14,20 @@ moved and turned by the effect: the same at both of ``Imitate-v0``'s levels) and
 
 It then looks again and, while the episode lasts, tries once more from where the block is.
 Subclasses say where the intent comes from: :class:`ExecutionCeiling` takes the true one from the env
-(the oracle), so what it misses is what execution misses; :class:`MarkerImitation` reads it from the
-demonstration's recorded markers and block path with the action models (the oracle of vision);
-:class:`CameraImitation` watches the demonstration's camera frames, as a person would show them.
+(the oracle), so what it misses is what execution misses; :class:`FrequentImitation` always does the
+same one (the most frequent action with its mean effect), the baseline that ignores the demonstration;
+:class:`MarkerImitation` reads it from the demonstration's recorded markers and block path with the
+action models (the oracle of vision); :class:`CameraImitation` watches the demonstration's camera
+frames, as a person would show them.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections import Counter
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +35,7 @@ import gymnasium
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.models.shipped import load_default_models
@@ -40,8 +45,8 @@ if TYPE_CHECKING:
     from hoap_actions.imitation.reading import DemonstrationReading
     from hoap_actions.imitation.watching import WatchedDemonstration
 
-__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "CameraImitation", "ExecutionCeiling", "Intent", "MarkerImitation",
-           "intent_of"]
+__all__ = ["ACTIONS", "BlockImitation", "DoNothing", "CameraImitation", "ExecutionCeiling", "FrequentImitation",
+           "Intent", "MarkerImitation", "frequent_intent", "intent_of"]
 
 logger = logging.getLogger(__name__)
 
@@ -80,6 +85,20 @@ def intent_of(action: str, human_start: np.ndarray, human_end: np.ndarray) -> In
     return Intent(action, world.HUMAN_TO_ROBOT_SCALE * (end[:2] - start[:2]), turn)
 
 
+def frequent_intent(shown: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> Intent:
+    """The most frequent action among demonstrations given as (action, human block start, human block end)
+    and its mean effect on the robot's table (the displacements' mean, the turns' circular mean): what a
+    robot that ignores the demonstration before it would best do. Ties go to the first of :data:`ACTIONS`."""
+    if not shown:
+        raise InvalidInputError("frequent_intent needs at least one demonstration")
+    intents = [intent_of(action, start, end) for action, start, end in shown]
+    counts = Counter(intent.action for intent in intents)
+    action = max(ACTIONS, key=lambda a: (counts[a], -ACTIONS.index(a)))
+    mine = [intent for intent in intents if intent.action == action]
+    turn = float(np.angle(np.mean(np.exp(1j * np.array([intent.turn for intent in mine])))))
+    return Intent(action, np.mean([intent.displacement for intent in mine], axis=0), turn)
+
+
 class BlockImitation(ABC):
     """``obs -> action`` on ``hoap_actions/Imitate-v0`` (``control_mode="ee_delta"``, the
     :class:`~hoap_actions.apps.episodes.Policy` protocol): the skills for an :class:`Intent` (module
@@ -87,6 +106,7 @@ class BlockImitation(ABC):
 
     control_mode = "ee_delta"
     env_ids = ("hoap_actions/Imitate-v0",)
+    taken_from = "told the true action"  # how the intent was had, written on the video
     failure: str | None
 
     def __init__(self, env: gymnasium.Env) -> None:
@@ -101,6 +121,7 @@ class BlockImitation(ABC):
         self.env = env
         self.hand = BlockHand(env)
         self.failure = None
+        self._reading_s = 0.0
         self.finished = False
         self.program: Iterator[np.ndarray] | None = None
         self.skills: list[str] = []
@@ -110,6 +131,24 @@ class BlockImitation(ABC):
         """What this episode's demonstration did, or None when it cannot be told (then :attr:`failure`
         says why)."""
 
+    def shown_markers(self) -> np.ndarray | None:
+        """The person's arm markers (T, M, 3) m, frame by frame, as this policy took them (None: not at all)."""
+        return None
+
+    def shown_frames(self) -> list[np.ndarray]:
+        """The demonstration's camera frames as this policy took them, for the episode's video: the arm it
+        estimated or read drawn on each, the action it did written on them."""
+        from hoap_actions.imitation.film import annotated_frames
+
+        demonstration = self.env.get_wrapper_attr("demonstration")()
+        action = "not recognised" if self.shown is None else self.shown.action
+        lines = [f"demonstration, {self.taken_from}", f"taken as: {action}"]
+        return annotated_frames(demonstration, self.shown_markers(), MARKER_NAMES, lines)
+
+    def reading_s(self) -> float:
+        """Wall time (s) this episode's :meth:`intent` took: reading the demonstration."""
+        return self._reading_s
+
     @property
     def done(self) -> bool:
         """True once every attempt has run (the block did not reach its target)."""
@@ -118,7 +157,9 @@ class BlockImitation(ABC):
     def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         self.hand.start(obs)
         self.failure, self.finished, self.skills = None, False, []
+        started = time.perf_counter()
         self.shown = self.intent()
+        self._reading_s = time.perf_counter() - started
         self.start_block = self.hand.look()
         if self.shown is None:
             self.failure = self.failure or "not recognised"
@@ -192,6 +233,8 @@ class MarkerImitation(BlockImitation):
     beyond :class:`ExecutionCeiling` is lost in recognition, none in vision. The markers and path come
     from the env's evaluation accessor, of which it reads nothing else."""
 
+    taken_from = "read from its markers"
+
     def __init__(self, env: gymnasium.Env) -> None:
         super().__init__(env)
         self._truth = env.get_wrapper_attr("true_demonstration")
@@ -211,6 +254,10 @@ class MarkerImitation(BlockImitation):
         """The action this episode's reading gave (``"not recognised"`` when none)."""
         return self.reading.action or "not recognised"
 
+    def shown_markers(self) -> np.ndarray:
+        """The recorded markers it read."""
+        return self._truth().H
+
 
 class CameraImitation(BlockImitation):
     """Imitation from the demonstration as a camera filmed it (``env.get_wrapper_attr("demonstration")()``:
@@ -218,17 +265,23 @@ class CameraImitation(BlockImitation):
     (:func:`~hoap_actions.imitation.watching.watch`: the tracker on the arm, the block's top face at both
     ends). ``particles`` and ``seed`` are the tracker's."""
 
+    taken_from = "watched through its camera"
+
     def __init__(self, env: gymnasium.Env, particles: int = 400, seed: int = 0) -> None:
         super().__init__(env)
         self._demonstration = env.get_wrapper_attr("demonstration")
         self.models = load_default_models()
         self.particles, self.seed = particles, seed
         self.watched: WatchedDemonstration | None = None
+        self._watch_s = 0.0
 
     def intent(self) -> Intent | None:
         from hoap_actions.imitation.watching import watch  # here: the tracker is not imported by every command
 
-        self.watched = watch(self.models, self._demonstration(), self.particles, self.seed)
+        demonstration = self._demonstration()  # the env films the person (rendered here once): not reading time
+        started = time.perf_counter()
+        self.watched = watch(self.models, demonstration, self.particles, self.seed)
+        self._watch_s = time.perf_counter() - started
         reading = self.watched.reading
         if reading.action is None:
             return None
@@ -237,6 +290,31 @@ class CameraImitation(BlockImitation):
     def recognised(self) -> str:
         """The action this episode's watching gave (``"not recognised"`` when none)."""
         return self.watched.reading.action or "not recognised"
+
+    def reading_s(self) -> float:
+        """Wall time (s) this episode's watching took (the demonstration's frames made by the env excluded)."""
+        return self._watch_s
+
+    def shown_markers(self) -> np.ndarray:
+        """The markers the tracker estimated, frame by frame."""
+        return np.stack([frame.markers for frame in self.watched.frames])
+
+
+class FrequentImitation(BlockImitation):
+    """The baseline that ignores the demonstration: every episode it does the same ``intent`` (from
+    :func:`frequent_intent` over demonstrations it was fitted on) to its block."""
+
+    taken_from = "not looked at (the most frequent action)"
+
+    def __init__(self, env: gymnasium.Env, intent: Intent | None = None) -> None:
+        if not isinstance(intent, Intent):
+            raise InvalidInputError("the frequent-action baseline needs its intent: Intent from frequent_intent() over "
+                                    f"demonstrations it may see; got {intent!r}")
+        super().__init__(env)
+        self._intent = intent
+
+    def intent(self) -> Intent:
+        return self._intent
 
 
 class DoNothing:

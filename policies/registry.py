@@ -11,7 +11,13 @@ from hoap_actions.envs import ENV_IDS
 from hoap_actions.envs.controls import MAX_HAND_STEP
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.policies.behaviour_cloning import BehaviourCloningPolicy
-from hoap_actions.policies.imitation_policy import CameraImitation, DoNothing, ExecutionCeiling, MarkerImitation
+from hoap_actions.policies.imitation_policy import (
+    CameraImitation,
+    DoNothing,
+    ExecutionCeiling,
+    FrequentImitation,
+    MarkerImitation,
+)
 from hoap_actions.policies.phmm_policy import PHMMPolicy
 from hoap_actions.policies.scripted_expert import ScriptedExpert
 
@@ -56,7 +62,8 @@ class StraightReach:
 
 POLICIES = {"random": RandomPolicy, "scripted": ScriptedExpert, "phmm": PHMMPolicy, "straight": StraightReach,
             "bc": BehaviourCloningPolicy, "imitation-oracle": ExecutionCeiling,
-            "imitation-markers": MarkerImitation, "imitation-camera": CameraImitation, "nothing": DoNothing}
+            "imitation-markers": MarkerImitation, "imitation-camera": CameraImitation,
+            "imitation-frequent": FrequentImitation, "nothing": DoNothing}
 """Policies by name; each has ``control_mode`` (the env's) and ``env_ids`` (the envs it can act in)."""
 
 

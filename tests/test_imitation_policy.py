@@ -24,7 +24,14 @@ from hoap_actions.policies.block_skills import (
     wrap_quarter,
 )
 from hoap_actions.policies.grasp import thumb_outline
-from hoap_actions.policies.imitation_policy import DoNothing, ExecutionCeiling, Intent, intent_of
+from hoap_actions.policies.imitation_policy import (
+    DoNothing,
+    ExecutionCeiling,
+    FrequentImitation,
+    Intent,
+    frequent_intent,
+    intent_of,
+)
 from hoap_actions.policies.registry import policy_class
 from hoap_actions.vision.block import locate_block
 
@@ -105,6 +112,43 @@ def test_the_oracle_accessor_needs_a_reset():
 def test_doing_nothing_ends_at_once_without_success(env):
     result = run_episode(env, DoNothing(env), SEEDS["push"])
     assert (result.success, result.reason, result.steps) == (False, "finished without success", 0)
+
+
+def test_the_frequent_baseline_told_the_true_intent_acts_as_the_oracle(env):
+    """Both run the same skills on an intent: given the episode's true one, the same actions step by step."""
+    env.reset(seed=SEEDS["push"])
+    truth = env.get_wrapper_attr("true_demonstration")()
+    intent = intent_of(truth.action, truth.object_start, truth.object_end)
+    runs = []
+    for policy in (ExecutionCeiling(env), FrequentImitation(env, intent=intent)):
+        obs, info = env.reset(seed=SEEDS["push"])
+        policy.reset(obs, info)
+        actions = []
+        for _ in range(30):
+            actions.append(policy(obs))
+            obs, *_ = env.step(actions[-1])
+        runs.append(np.array(actions))
+        assert policy.reading_s() >= 0.0
+    np.testing.assert_array_equal(runs[0], runs[1])
+    with pytest.raises(InvalidInputError, match="needs its intent"):
+        FrequentImitation(env)
+
+
+def test_the_frequent_intent_is_the_modal_action_with_its_mean_effect():
+    def pose(x, yaw):
+        return np.array([x, 0.0, 0.025, 0.0, 0.0, yaw])
+
+    shown = [("rotate", pose(0.0, 0.0), pose(0.1, np.radians(170))),
+             ("rotate", pose(0.0, 0.0), pose(0.3, np.radians(-170))),
+             ("push", pose(0.0, 0.0), pose(0.5, 0.0))]
+    intent = frequent_intent(shown)
+    assert intent.action == "rotate"
+    np.testing.assert_allclose(intent.displacement, [world.HUMAN_TO_ROBOT_SCALE * 0.2, 0.0], atol=1e-12)
+    assert abs(intent.turn) == pytest.approx(np.pi)  # the circular mean of +-170 degrees, not 0
+    tie = frequent_intent([("push", pose(0, 0), pose(0.1, 0)), ("approach", pose(0, 0), pose(0, 0))])
+    assert tie.action == "approach"  # ties go to the first of ACTIONS
+    with pytest.raises(InvalidInputError, match="at least one"):
+        frequent_intent([])
 
 
 def test_an_unknown_action_is_refused():
