@@ -133,7 +133,7 @@ def main() -> None:
     if args.output == RESULTS / "imitation.json":
         args.output = RESULTS / f"imitation_{args.robot}.json"
     seeds = range(*args.seeds)
-    if set(seeds) & set(range(*args.fit_seeds)):
+    if "frequent" in args.policies and set(seeds) & set(range(*args.fit_seeds)):
         parser.error("--fit-seeds overlap --seeds: the frequent-action baseline would see the demonstrations it is "
                      "scored on")
     env_kwargs = {"level": args.level, "demonstrator": args.demonstrator}
