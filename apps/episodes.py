@@ -51,6 +51,7 @@ class EpisodeResult:
     recognised: str | None = None
     reset_s: float | None = None  # wall time of env.reset (an imitation env performs its demonstration there)
     reading_s: float | None = None  # wall time the policy spent reading a demonstration (reading_s())
+    filming_s: float | None = None  # wall time the env took to film the demonstration the policy asked for
 
 
 def run_episode(
@@ -96,7 +97,8 @@ def run_episode(
                          perception_error, deviations,
                          float(np.percentile(hand_errors, 95)) if hand_errors else None,
                          policy.recognised() if hasattr(policy, "recognised") else None, reset_s,
-                         policy.reading_s() if hasattr(policy, "reading_s") else None)
+                         policy.reading_s() if hasattr(policy, "reading_s") else None,
+                         policy.filming_s() if hasattr(policy, "filming_s") else None)
 
 
 def _hand_error_reader(env: gymnasium.Env) -> Callable[[dict[str, np.ndarray]], float] | None:
@@ -246,7 +248,7 @@ def summarise(results: list[EpisodeResult], timings: bool = True) -> dict[str, A
     if not timings:
         del summary["mean_wall_s"]
         for episode in summary["episodes"]:
-            for key in ("wall_s", "reset_s", "reading_s"):
+            for key in ("wall_s", "reset_s", "reading_s", "filming_s"):
                 del episode[key]
     return summary
 

@@ -107,13 +107,16 @@ def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
 
 def timing(episodes: list, seconds: dict[int, float], control_fps: float) -> dict:
     """Per episode of a policy that reads its demonstration: the reading's and the execution's wall time
-    (the episode without the env's reset and the reading) and how fast the loop runs against the real
-    time it stands for (the demonstration's length plus the robot's episode's, over reading plus execution)."""
+    (the episode without the env's reset, its filming of the demonstration, and the reading) and how fast
+    the loop runs against the real time it stands for (the demonstration's length plus the robot's
+    episode's, over reading plus execution)."""
     reading = np.array([e.reading_s for e in episodes])
-    execution = np.array([e.wall_s - e.reset_s - e.reading_s for e in episodes])
+    filming = np.array([e.filming_s or 0.0 for e in episodes])
+    execution = np.array([e.wall_s - e.reset_s - e.reading_s - f for e, f in zip(episodes, filming)])
     shown = np.array([seconds[e.seed] + e.steps / control_fps for e in episodes])
     factor = shown / (reading + execution)
     return {"reading_s": float(reading.mean()), "execution_s": float(execution.mean()),
+            "filming_s": float(filming.mean()),
             "demonstration_s": float(np.mean([seconds[e.seed] for e in episodes])),
             "real_time_factor": {"median": float(np.median(factor)), "min": float(factor.min()),
                                  "overall": float(shown.sum() / (reading + execution).sum())}}

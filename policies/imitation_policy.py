@@ -273,12 +273,14 @@ class CameraImitation(BlockImitation):
         self.models = load_default_models()
         self.particles, self.seed = particles, seed
         self.watched: WatchedDemonstration | None = None
-        self._watch_s = 0.0
+        self._watch_s = self._filming_s = 0.0
 
     def intent(self) -> Intent | None:
         from hoap_actions.imitation.watching import watch  # here: the tracker is not imported by every command
 
-        demonstration = self._demonstration()  # the env films the person (rendered here once): not reading time
+        started = time.perf_counter()
+        demonstration = self._demonstration()  # the env films the person (rendered here, once): not reading time
+        self._filming_s = time.perf_counter() - started
         started = time.perf_counter()
         self.watched = watch(self.models, demonstration, self.particles, self.seed)
         self._watch_s = time.perf_counter() - started
@@ -294,6 +296,10 @@ class CameraImitation(BlockImitation):
     def reading_s(self) -> float:
         """Wall time (s) this episode's watching took (the demonstration's frames made by the env excluded)."""
         return self._watch_s
+
+    def filming_s(self) -> float:
+        """Wall time (s) the env took to make this episode's demonstration frames (a camera's, in a real room)."""
+        return self._filming_s
 
     def shown_markers(self) -> np.ndarray:
         """The markers the tracker estimated, frame by frame."""
