@@ -60,7 +60,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--validate", action="store_true", help="score the baselines' candidate settings on the "
                         "validation recordings instead (writes results/recognition_baselines_validation.json)")
     parser.add_argument("--models", type=Path, help="the project's models (default: the shipped ones)")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes for the project's recognition")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="processes recording missing demonstrations and running the project's recognition, and "
+                             "the classifier's threads (the figures do not depend on it)")
     hmms = parser.add_argument_group("per-class HMMs (defaults chosen on validation)")
     hmms.add_argument("--hmm-features", default="positions+displacements",
                       choices=("displacements", "positions+displacements"))
@@ -95,9 +97,9 @@ def main(argv: list[str] | None = None) -> dict:
     models_path = args.models or default_models_path()
     models = ActionModels.load(models_path)
     fps = models.fps_
-    train = [ensure_recording("paper", seed, args.data) for seed in args.train_seeds]
+    train = [ensure_recording("paper", seed, args.data, workers=args.jobs) for seed in args.train_seeds]
     seeds = args.validation_seeds if args.validate else args.test_seeds
-    tests = [ensure_recording("paper", seed, args.data) for seed in seeds]
+    tests = [ensure_recording("paper", seed, args.data, workers=args.jobs) for seed in seeds]
     episodes, _, _ = load_training_demonstrations(train)
     lengths = [e.T for e in episodes]
     labels = rc.discovery_labels(models.discovery_, lengths)
@@ -124,7 +126,7 @@ def main(argv: list[str] | None = None) -> dict:
         X = np.concatenate([rc.classifier_features(H, fps) for H in H_train])
         started = time.perf_counter()
         model = FrameClassifier(offsets=offsets, max_iter=args.clf_iter, train_stride=args.clf_stride,
-                                **decoding).fit(X, lengths, labels)
+                                n_threads=args.jobs, **decoding).fit(X, lengths, labels)
         return model, time.perf_counter() - started
 
     if args.validate:

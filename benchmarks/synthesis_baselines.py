@@ -283,7 +283,7 @@ def main(argv: list[str] | None = None) -> dict:
         figure(document, figure_path(args.figure, document["protocol"]["seeds"], args.figure_only))
         return document
     started, cpu_started = time.perf_counter(), time.process_time()
-    paths = {seed: ensure_recording("approach-grid", seed, args.data) for seed in args.seeds}
+    paths = {seed: ensure_recording("approach-grid", seed, args.data, workers=args.jobs) for seed in args.seeds}
     per_recording = evaluate_recordings(paths, args.jobs)
     from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.primitives.evaluation.grid_synthesis import grid_data
