@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 __all__ = ["GOAL_SIZE", "POSITION_TOLERANCE", "ANGLE_TOLERANCE", "STILL_TOLERANCE", "POINT_TOLERANCE",
-           "block_angle", "goal_distance", "goal_errors", "goal_reached", "goal_vector"]
+           "block_angle", "block_turn", "goal_distance", "goal_errors", "goal_reached", "goal_vector", "yaw_of"]
 
 GOAL_SIZE = 10
 POSITION_TOLERANCE = 0.005  # m, block centre to its target (push, move, rotate)
@@ -27,6 +27,17 @@ POINT_TOLERANCE = 0.005  # m, the hand's pointing position to an approach's targ
 METRES_PER_RADIAN = POSITION_TOLERANCE / ANGLE_TOLERANCE
 """Weight of the angle in the dense distance: a tolerance's worth of turn counts as a tolerance's worth of shift."""
 _CUBE_ROTATIONS = Rotation.create_group("O").as_quat()  # (24, 4) x y z w: the rotations that map a cube onto itself
+
+
+def yaw_of(rotation_vector: np.ndarray) -> float:
+    """The heading (rad) about the vertical of an orientation given as a rotation vector (3,)."""
+    return float(Rotation.from_rotvec(rotation_vector).as_euler("zyx")[0])
+
+
+def block_turn(start: np.ndarray, end: np.ndarray) -> float:
+    """The block's turn (rad, in [-pi, pi]) about the vertical from pose ``start`` to pose ``end`` (6,:
+    centre m and rotation vector rad)."""
+    return float(np.angle(np.exp(1j * (yaw_of(end[3:]) - yaw_of(start[3:])))))
 
 
 def goal_vector(block_position: np.ndarray, block_quaternion: np.ndarray, point_xy: np.ndarray,

@@ -17,7 +17,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from hoap_actions.demonstration.bodies import DEMONSTRATORS
 from hoap_actions.envs import scene as scene_module
@@ -53,10 +52,6 @@ BOARD_LOW = np.array([-0.02, -0.19])  # m, board centres: its half diagonal (5.9
 BOARD_HIGH = np.array([0.16, 0.19])
 MAX_LAYOUT_TRIES = 2000
 _HALF_DIAGONAL = BLOCK_SIZE / np.sqrt(2.0)
-
-
-def _yaw(rotation_vector: np.ndarray) -> float:
-    return float(Rotation.from_rotvec(rotation_vector).as_euler("zyx")[0])
 
 
 def _yaw_quaternion(yaw: float) -> np.ndarray:
@@ -161,11 +156,11 @@ class ImitateTask(Task):
         self._approach = self.shown.action == "approach"
         mapped_start = world.human_to_robot(start_h[:3])[:2]
         move = world.HUMAN_TO_ROBOT_SCALE * (end_h[:2] - start_h[:2])
-        turn = float(np.angle(np.exp(1j * (_yaw(end_h[3:]) - _yaw(start_h[3:])))))
+        turn = goals.block_turn(start_h, end_h)
         if self._approach:
             move, turn = np.zeros(2), 0.0
         if self.level == "mapped":
-            start_xy, start_yaw = mapped_start, _yaw(start_h[3:])
+            start_xy, start_yaw = mapped_start, goals.yaw_of(start_h[3:])
         else:
             start_xy, start_yaw = self._shifted_start(rng, mapped_start, move), float(rng.uniform(-SHIFTED_YAW,
                                                                                                     SHIFTED_YAW))

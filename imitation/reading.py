@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.imitation.goals import block_turn
 from hoap_actions.primitives.discovery.estimator import MANIPULATION
 from hoap_actions.primitives.models.class_models import DecodedSegment
 
@@ -50,10 +50,6 @@ class DemonstrationReading:
     manipulation: tuple[int, int] | None
 
 
-def _yaw(rotation_vector: np.ndarray) -> np.ndarray:
-    return Rotation.from_rotvec(np.atleast_2d(rotation_vector)).as_euler("zyx")[:, 0]
-
-
 def _checked_path(O: np.ndarray, frames: int) -> np.ndarray:
     O = np.asarray(O, dtype=float)
     if O.shape != (frames, 6) or not np.all(np.isfinite(O)):
@@ -70,7 +66,7 @@ def read_markers(models: DecodingModels, H: np.ndarray, O: np.ndarray) -> Demons
     start, end = O[0].copy(), O[-1].copy()
     class_ids = tuple(int(s.class_id) for s in segments)
     pieces = [s for s in segments if models.classes_[s.class_id].kind == MANIPULATION]
-    turn = abs(float(np.angle(np.exp(1j * (_yaw(end[3:])[0] - _yaw(start[3:])[0])))))
+    turn = abs(block_turn(start, end))
     still = np.linalg.norm(end[:2] - start[:2]) < MOVED and turn < STILL_TURN
     if not pieces:
         action = "approach" if segments and still else None

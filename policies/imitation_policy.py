@@ -33,11 +33,11 @@ from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
+from hoap_actions.imitation.goals import block_turn
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.policies.block_skills import BlockHand, run_up, wrap_quarter
 
@@ -70,10 +70,6 @@ class Intent:
             raise InvalidInputError(f"action {self.action!r} is not one the robot imitates; accepted: {list(ACTIONS)}")
 
 
-def _yaw(rotation_vector: np.ndarray) -> float:
-    return float(Rotation.from_rotvec(rotation_vector).as_euler("zyx")[0])
-
-
 def intent_of(action: str, human_start: np.ndarray, human_end: np.ndarray) -> Intent:
     """The :class:`Intent` of a demonstration whose block went from ``human_start`` to ``human_end`` (6,:
     centre m and rotation vector rad, the person's table): the displacement mapped to the robot's table
@@ -81,7 +77,7 @@ def intent_of(action: str, human_start: np.ndarray, human_end: np.ndarray) -> In
     start, end = np.asarray(human_start, float), np.asarray(human_end, float)
     if action == "approach":
         return Intent(action, np.zeros(2), 0.0)
-    turn = float(np.angle(np.exp(1j * (_yaw(end[3:]) - _yaw(start[3:])))))
+    turn = block_turn(start, end)
     return Intent(action, world.HUMAN_TO_ROBOT_SCALE * (end[:2] - start[:2]), turn)
 
 
