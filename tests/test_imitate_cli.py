@@ -73,3 +73,10 @@ def test_the_arm_is_drawn_where_the_camera_sees_its_markers():
     assert drawn[0][v, u].any() and not drawn[1].any()
     with pytest.raises(InvalidInputError, match=r"\(T, M, 3\)"):
         annotated_frames(shown, markers[:1], names, [])
+
+
+def test_reset_options_come_one_per_seed():
+    from hoap_actions.apps.episodes import compare_policies
+
+    with pytest.raises(InvalidInputError, match="one entry per seed"):
+        compare_policies("hoap_actions/Imitate-v0", {"nothing": ("nothing", {})}, [1, 2], options=[None])
