@@ -344,7 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
                          help="also run the execution ceiling (told the true action and effect) on the same episodes")
     imitate.add_argument("--robot", default="fixed_legs", choices=list(ROBOT_MODELS),
                          help="fixed_legs: bolted at the pelvis (default, the measured one); full: free-standing")
-    imitate.add_argument("--episodes", type=_positive_int, default=10, help="demonstrations (default: %(default)s)")
+    imitate.add_argument("--episodes", type=_positive_int, help="drawn demonstrations (default: 10)")
     imitate.add_argument("--seed", type=_seed, default=0, help="demonstrations and layouts from seeds S, S+1, ...")
     imitate.add_argument("--demos", type=_path, help="replay this recording's demonstrations (.h5, from the record "
                                                      "command) instead of drawing them; layouts from seeds S, S+1, ...")

@@ -14,7 +14,9 @@ from hoap_actions.errors import InvalidInputError
 from hoap_actions.outputs import claimed_file
 from hoap_actions.seeds import check_seed
 
-__all__ = ["demo_command", "imitate_command"]
+__all__ = ["DRAWN_EPISODES", "demo_command", "imitate_command"]
+
+DRAWN_EPISODES = 10  # imitate's demonstrations when neither --episodes nor --demos is given
 
 
 def demo_command(args: argparse.Namespace) -> int:
@@ -91,6 +93,9 @@ def imitate_command(args: argparse.Namespace) -> int:
     args.env_kwargs = {"level": args.level, "demonstrator": args.demonstrator}
     args.options = None
     if args.demos is not None:
+        if args.episodes is not None:
+            raise InvalidInputError("--episodes counts drawn demonstrations; with --demos pick the recording's "
+                                    "episodes with --episode")
         if args.demonstrator is not None:
             raise InvalidInputError("--demonstrator draws who demonstrates; a recording (--demos) already has its own")
         episodes = _recorded_episodes(args.demos, args.episode)
@@ -98,6 +103,8 @@ def imitate_command(args: argparse.Namespace) -> int:
         args.options = [{"demonstration": (str(args.demos), k)} for k in episodes]
     elif args.episode is not None:
         raise InvalidInputError("--episode picks episodes of a recording; give the recording with --demos")
+    else:
+        args.episodes = DRAWN_EPISODES if args.episodes is None else args.episodes
     return demo_command(args)
 
 

@@ -37,6 +37,7 @@ def test_a_replayed_episode_is_imitated_and_filmed_beside_its_demonstration(smal
 @pytest.mark.parametrize("argv, message", [
     (["--episode", "9"], "--episode 9 is not in the recording"),
     (["--demonstrator", "tall"], "a recording (--demos) already has its own"),
+    (["--episodes", "2"], "pick the recording's episodes with --episode"),
 ])
 def test_bad_replays_are_one_line_before_any_episode(small_recording, capsys, argv, message):
     assert main(["imitate", "--demos", str(small_recording), *argv]) == 2
