@@ -15,7 +15,7 @@ Splits, declared in ``docs/experiments/behaviour_cloning.md`` before the first h
 layouts 66000-66199 (those of the PHMM policy's welded-robot figure), run once; validation layouts
 79000-79049 for every choice (``--seeds 79000 79050 --baselines``); no seed below 79000 otherwise.
 
-    pip install ".[bench,rl,minari]"
+    pip install ".[bench]"
     python benchmarks/behaviour_cloning.py --workers 2
 
 Writes ``results/behaviour_cloning.json`` (or ``--output``) and its figure (``--figure``); ``--figure-only

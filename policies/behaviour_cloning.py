@@ -56,7 +56,8 @@ def _torch():
     try:
         import torch
     except ImportError:
-        raise InvalidInputError('behaviour cloning needs PyTorch: pip install "hoap-actions[rl]"') from None
+        raise InvalidInputError('behaviour cloning needs PyTorch: pip install "hoap-actions[rl]" (or [bench])'
+                                ) from None
     return torch
 
 
