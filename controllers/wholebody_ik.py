@@ -67,6 +67,7 @@ PELVIS = "pelvis"
 FROZEN = ("head_pan", "head_tilt", "head_roll", "r_gripper", "l_gripper")
 """Joints the IK leaves where they are: they move no task frame (the grippers are commanded apart)."""
 MAX_HAND_PULL = 0.02  # m, largest hand error the QP sees in one solve
+MAX_HEADING_PULL = 0.05  # rad, largest heading error the QP sees in one solve (a heading is asked)
 COM_HEIGHT = 0.3  # m, the standing robot's CoM over its soles (for the DCM's natural frequency)
 IK_JOINT_LIMITS = {"r_knee": (-0.017, 1.1), "l_knee": (-0.017, 1.1), "waist_pitch": (-0.017, 0.5)}
 """IK-only ranges (rad). Knees bent at most 63 deg (a squat of about 3 cm): deeper, the IK sinks the
@@ -134,6 +135,9 @@ class WholeBodyIK:
     axis_weight
         soft weight of the peg-axis-vertical task (per rad^2): low, so that where the
         arm cannot reach with a level forearm the hand tilts rather than misses.
+    heading_weight
+        soft weight of the hand's heading about the vertical (per rad^2), when a solve is given one
+        (:meth:`solve`'s ``heading``): a task of its own, in the problem only while a heading is asked.
     posture_weight
         soft weight of the posture task (per rad^2).
     pelvis_weight
@@ -171,6 +175,7 @@ class WholeBodyIK:
         urdf: str | Path | None = None,
         hand_weight: float = 1e4,
         axis_weight: float = 1.0,
+        heading_weight: float = 1.0,
         posture_weight: float = 1e-3,
         pelvis_weight: float = 1e2,
         pelvis_xy_weight: float = 1e3,
@@ -247,6 +252,8 @@ class WholeBodyIK:
         self._tilt = solver.add_orientation_task(HAND, np.eye(3))
         self._tilt.mask.set_axises("xy", "task")
         self._tilt.configure("hand_tilt", "soft", float(axis_weight))
+        self.heading_weight = float(heading_weight)
+        self._heading_task = None
         if not self.fixed_legs:
             self._pelvis = solver.add_orientation_task(PELVIS, np.eye(3))
             self._pelvis.configure("pelvis_level", "soft", float(pelvis_weight))
@@ -398,11 +405,13 @@ class WholeBodyIK:
         robot.update_kinematics()
         return hand
 
-    def probe(self, hand_target: ArrayLike, iterations: int = 200, step: float = 1e-3) -> Probe:
+    def probe(self, hand_target: ArrayLike, iterations: int = 200, step: float = 1e-3,
+              heading: float | None = None) -> Probe:
         """Where the hand ends up when its target moves in a straight line to ``hand_target`` by
-        ``step`` (m) per solve, followed by up to ``iterations`` solves on it. The IK state is
-        restored afterwards, so this is a pure reachability query. (Jumping to a far target at once
-        can leave the QP in a worse local optimum than the streamed path the controller takes.)"""
+        ``step`` (m) per solve, followed by up to ``iterations`` solves on it (with ``heading``, asked
+        to turn the hand to it there). The IK state is restored afterwards, so this is a pure
+        reachability query. (Jumping to a far target at once can leave the QP in a worse local optimum
+        than the streamed path the controller takes.)"""
         saved_q = self.robot.state.q.copy()
         saved = [
             np.copy(value) for value in (
@@ -415,13 +424,16 @@ class WholeBodyIK:
         n_path = int(np.ceil(np.linalg.norm(goal - start) / step))
         for k in range(1, n_path):
             self.solve(start + (goal - start) * (k / n_path))
-        error = np.inf
+        error, turned = np.inf, np.inf
         for _ in range(iterations):
-            result = self.solve(goal)
-            if result.status == IKStatus.SOLVER_FAILED or abs(error - result.hand_error) < 1e-7:
+            result = self.solve(goal, heading)
+            now = 0.0 if heading is None else float(np.arctan2(*self.robot.get_T_world_frame(HAND)[[1, 0], 0]))
+            if result.status == IKStatus.SOLVER_FAILED or (abs(error - result.hand_error) < 1e-7
+                                                           and abs(turned - now) < 1e-7):
                 break
-            error = result.hand_error
+            error, turned = result.hand_error, now
         rotation = self.robot.get_T_world_frame(HAND)[:3, :3].copy()
+        self._hold_heading(False)
         hand, self._posture_target, self._com_target, margin, self._tilt_rotvec, self._tilt_rotation, settled = saved
         self._hand.target_world = hand
         self._margin, self._settled = float(margin), bool(settled)
@@ -434,9 +446,22 @@ class WholeBodyIK:
         return Probe(float(error), rotation)
 
     # ------------------------------------------------------------------ solving
-    def solve(self, hand_target: ArrayLike) -> IKResult:
-        """One QP step towards ``hand_target`` (3,) (m, world); never raises on an infeasible target."""
+    def _hold_heading(self, held: bool) -> None:
+        """Put the heading task in the problem (``held``) or take it out: without one, the solver is the
+        one without headings, unchanged."""
+        if held and self._heading_task is None:
+            self._heading_task = self.solver.add_orientation_task(HAND, np.eye(3))
+            self._heading_task.mask.set_axises("z", "world")
+            self._heading_task.configure("hand_heading", "soft", self.heading_weight)
+        elif not held and self._heading_task is not None:
+            self.solver.remove_task(self._heading_task)
+            self._heading_task = None
+
+    def solve(self, hand_target: ArrayLike, heading: float | None = None) -> IKResult:
+        """One QP step towards ``hand_target`` (3,) (m, world) and, if given, the hand's ``heading`` about
+        the vertical (rad; the forearm's direction, seen from above); never raises on an infeasible target."""
         target = np.asarray(hand_target, dtype=float)
+        self._hold_heading(heading is not None)
         robot = self.robot
         self._settle()
         try:
@@ -448,7 +473,12 @@ class WholeBodyIK:
             distance = float(np.linalg.norm(pull))
             self._hand.target_world = (T_hand[:3, 3] + pull * min(1.0, MAX_HAND_PULL / distance) if distance > 0.0
                                        else target)
-            self._tilt.R_world_frame = _heading(T_hand) @ self._tilt_rotation
+            level = _heading(T_hand)
+            self._tilt.R_world_frame = level @ self._tilt_rotation
+            if heading is not None:
+                now = float(np.arctan2(level[1, 0], level[0, 0]))
+                turn = float(np.clip(np.angle(np.exp(1j * (heading - now))), -MAX_HEADING_PULL, MAX_HEADING_PULL))
+                self._heading_task.R_world_frame = _yaw_matrix(now + turn) @ level.T @ T_hand[:3, :3]
             self.solver.solve(True)
             robot.update_kinematics()
             q = robot.state.q
@@ -474,6 +504,11 @@ def _heading(T: np.ndarray) -> np.ndarray:
     if norm < 1e-9:  # forearm vertical: any heading will do
         return np.eye(3)
     c, s = c / norm, s / norm
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _yaw_matrix(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 

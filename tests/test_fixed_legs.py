@@ -202,3 +202,25 @@ def test_a_placement_that_is_not_finite_is_refused_before_pybullet(placement):
         assert sim.body_names == []  # refused before anything was loaded
     finally:
         sim.close()
+
+
+def test_a_heading_asked_of_the_ik_turns_the_hand_where_the_arm_can():
+    """A reachable heading 10 degrees off the one the IK picks is taken within 2 degrees, the hand kept on its
+    point; the query leaves the IK as it found it (benchmarks/hand_heading_reach.py maps the reach)."""
+    sims, (_, fixed) = _robots(world.FIXED_LEGS_FEET_XY)
+    try:
+        ik = WholeBodyIK(fixed.joint_names, rest_posture(fixed), fixed_legs=True)
+        position, quat = fixed.base_pose()
+        ik.reset(fixed.home_posture, position, quat)
+        point = np.array([0.0, 0.06, 0.06])
+        free = ik.probe(point)
+        chosen = np.arctan2(free.rotation[1, 0], free.rotation[0, 0])
+        turned = ik.probe(point, heading=chosen + np.radians(10.0))
+        assert np.degrees(np.arctan2(turned.rotation[1, 0], turned.rotation[0, 0]) - chosen) == pytest.approx(10, abs=2)
+        assert turned.error < 0.005
+        again = ik.probe(point)  # the query left no heading behind
+        np.testing.assert_allclose(again.rotation, free.rotation, atol=1e-12)
+        assert again.error == free.error
+    finally:
+        for sim in sims:
+            sim.close()
