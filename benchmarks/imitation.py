@@ -63,19 +63,20 @@ def fit_frequent(seeds: range, robot: str, env_kwargs: dict) -> Intent:
     return frequent_intent(shown)
 
 
-def reset_pass(seeds: range, robot: str, env_kwargs: dict) -> tuple[dict[int, str], dict[int, float], dict]:
-    """The action each seed's demonstration shows and its length in seconds (the env's oracle, read after
-    a reset) and how well the overhead camera locates the block there
+def reset_pass(seeds: range, robot: str, env_kwargs: dict) -> tuple[dict[int, dict], dict]:
+    """What each seed's demonstration was (the env's oracle, read after a reset: its ``action``, its
+    ``seconds`` and its ``demonstrator``) and how well the overhead camera locates the block there
     (:func:`~hoap_actions.vision.block.locate_block` at 320 x 240 against the simulator's pose: centre
     error in mm, turn error in degrees modulo a quarter turn)."""
     env = gymnasium.make(ENV_ID, robot=robot, control_mode="ee_delta", **env_kwargs)
     parse, capture = env.get_wrapper_attr("parse_observation"), env.get_wrapper_attr("capture")
-    actions, seconds, centre_mm, turn_deg = {}, {}, [], []
+    shown, centre_mm, turn_deg = {}, [], []
     try:
         for seed in seeds:
             obs, _ = env.reset(seed=seed)
             truth = env.get_wrapper_attr("true_demonstration")()
-            actions[seed], seconds[seed] = truth.action, len(truth.H) / truth.fps
+            shown[seed] = {"action": truth.action, "seconds": len(truth.H) / truth.fps,
+                           "demonstrator": truth.demonstrator}
             view, truth = capture("overhead", 320, 240), parse(obs)
             found = locate_block(view.rgb, view.depth, view.camera, BLOCK_SIZE)
             if found is None:
@@ -90,22 +91,45 @@ def reset_pass(seeds: range, robot: str, env_kwargs: dict) -> tuple[dict[int, st
                                     "max": float(np.max(centre_mm))},
                 "turn_error_deg": {"median": float(np.median(turn_deg)), "p95": float(np.percentile(turn_deg, 95)),
                                    "max": float(np.max(turn_deg))}}
-    return actions, seconds, location
+    return shown, location
 
 
-def by_action(episodes: list, actions: dict[int, str]) -> dict[str, dict]:
-    """Successes, episodes and the Wilson interval per demonstrated action."""
+def by_group(episodes: list, groups: dict[int, str], names: list[str]) -> dict[str, dict]:
+    """Successes, episodes and the Wilson interval per group (a demonstrated action, a demonstrator) of the
+    episodes' seeds; ``episodes`` are results or their summaries' dictionaries."""
     table = {}
-    for action in ACTIONS:
-        mine = [e for e in episodes if actions[e.seed] == action]
-        successes = sum(e.success for e in mine)
+    for action in names:
+        mine = [e for e in episodes if groups[_seed(e)] == action]
+        successes = sum(_success(e) for e in mine)
         table[action] = {"successes": successes, "episodes": len(mine),
                          "success_rate": successes / len(mine) if mine else None,
                          "success_ci95": wilson_interval(successes, len(mine))}
     return table
 
 
-def timing(episodes: list, seconds: dict[int, float], control_fps: float) -> dict:
+def _seed(episode) -> int:
+    return episode["seed"] if isinstance(episode, dict) else episode.seed
+
+
+def _success(episode) -> bool:
+    return episode["success"] if isinstance(episode, dict) else episode.success
+
+
+def breakdown(path: Path, shown: dict[int, dict]) -> dict:
+    """Per policy of an earlier run's JSON on the same seeds: its success per demonstrator, the
+    demonstrators read from this run's resets."""
+    import json
+
+    other = json.loads(Path(path).read_text())
+    if list(other["seeds"]) != [min(shown), max(shown) + 1]:
+        raise SystemExit(f"--breakdown {path} ran seeds {other['seeds']}, not these")
+    demonstrators = {seed: row["demonstrator"] for seed, row in shown.items()}
+    names = sorted(set(demonstrators.values()))
+    return {name: by_group(other[name]["episodes"], demonstrators, names)
+            for name in POLICIES if name in other and "episodes" in other[name]}
+
+
+def timing(episodes: list, shown: dict[int, dict], control_fps: float) -> dict:
     """Per episode of a policy that reads its demonstration: the reading's and the execution's wall time
     (the episode without the env's reset, its filming of the demonstration, and the reading) and how fast
     the loop runs against the real time it stands for (the demonstration's length plus the robot's
@@ -113,13 +137,13 @@ def timing(episodes: list, seconds: dict[int, float], control_fps: float) -> dic
     reading = np.array([e.reading_s for e in episodes])
     filming = np.array([e.filming_s or 0.0 for e in episodes])
     execution = np.array([e.wall_s - e.reset_s - e.reading_s - f for e, f in zip(episodes, filming)])
-    shown = np.array([seconds[e.seed] + e.steps / control_fps for e in episodes])
-    factor = shown / (reading + execution)
+    real = np.array([shown[e.seed]["seconds"] + e.steps / control_fps for e in episodes])
+    factor = real / (reading + execution)
     return {"reading_s": float(reading.mean()), "execution_s": float(execution.mean()),
             "filming_s": float(filming.mean()),
-            "demonstration_s": float(np.mean([seconds[e.seed] for e in episodes])),
+            "demonstration_s": float(np.mean([shown[e.seed]["seconds"] for e in episodes])),
             "real_time_factor": {"median": float(np.median(factor)), "min": float(factor.min()),
-                                 "overall": float(shown.sum() / (reading + execution).sum())}}
+                                 "overall": float(real.sum() / (reading + execution).sum())}}
 
 
 def main() -> None:
@@ -130,6 +154,8 @@ def main() -> None:
     parser.add_argument("--demonstrator", choices=sorted(DEMONSTRATORS), help="who demonstrates (default: drawn)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--policies", nargs="+", choices=list(POLICIES), default=list(POLICIES))
+    parser.add_argument("--breakdown", type=Path, metavar="JSON",
+                        help="also break an earlier run's policies on the same seeds down by demonstrator")
     parser.add_argument("--fit-seeds", type=int, nargs=2, default=VALIDATION_SEEDS, metavar=("FIRST", "STOP"),
                         help="the demonstrations the frequent-action baseline is fitted on (default: validation)")
     args = parser.parse_args()
@@ -149,7 +175,9 @@ def main() -> None:
               f"turn {np.degrees(intent.turn):.1f} deg")
     results = compare_policies(ENV_ID, policies, seeds, workers=args.workers, robot=args.robot, env_kwargs=env_kwargs)
     wall = time.perf_counter() - start
-    actions, seconds, location = reset_pass(seeds, args.robot, env_kwargs)
+    shown, location = reset_pass(seeds, args.robot, env_kwargs)
+    actions = {seed: row["action"] for seed, row in shown.items()}
+    demonstrators = {seed: row["demonstrator"] for seed, row in shown.items()}
     document = {"env": ENV_ID, "level": args.level, "demonstrator": args.demonstrator or "drawn",
                 "seeds": list(args.seeds), "robot": args.robot, "workers": args.workers, "wall_s": wall,
                 "environment": numeric_environment(None), "block_location": location}
@@ -162,9 +190,10 @@ def main() -> None:
           f"{location['turn_error_deg']['median']:.1f} deg (max {location['turn_error_deg']['max']:.1f})")
     for name, episodes in results.items():
         summary = summarise(episodes)
-        summary["by_action"] = by_action(episodes, actions)
+        summary["by_action"] = by_group(episodes, actions, list(ACTIONS))
+        summary["by_demonstrator"] = by_group(episodes, demonstrators, sorted(set(demonstrators.values())))
         for episode in summary["episodes"]:
-            episode["action"] = actions[episode["seed"]]
+            episode["action"], episode["demonstrator"] = actions[episode["seed"]], demonstrators[episode["seed"]]
         readings = [e for e in summary["episodes"] if e["recognised"] is not None]
         if readings:
             right = sum(e["recognised"] == e["action"] for e in readings)
@@ -174,7 +203,7 @@ def main() -> None:
                                      "ci95": wilson_interval(right, len(readings)), "confusion": dict(confusion)}
             print(f"{name}: action recognised in {right} of {len(readings)}; confusions {dict(confusion)}")
         if episodes[0].reading_s is not None:
-            summary["timing"] = timing(episodes, seconds, CONTROL_FPS)
+            summary["timing"] = timing(episodes, shown, CONTROL_FPS)
             t = summary["timing"]
             print(f"{name}: reading {t['reading_s']:.1f} s, execution {t['execution_s']:.1f} s per episode; the loop "
                   f"runs at {t['real_time_factor']['overall']:.2f}x real time (demonstrations of "
@@ -184,9 +213,15 @@ def main() -> None:
         print(f"{name:>8} ({args.robot}): success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over "
               f"{len(episodes)} episodes, falls {summary['falls']}, mean episode {summary['mean_wall_s']:.1f} s, "
               f"{summary['reasons']}")
-        for action, row in summary["by_action"].items():
-            a, b = row["success_ci95"]
-            print(f"{'':>10}{action:>9}: {row['successes']}/{row['episodes']} [{a:.1%}, {b:.1%}]")
+        for group in ("by_action", "by_demonstrator"):
+            for key, row in summary[group].items():
+                a, b = row["success_ci95"]
+                print(f"{'':>10}{key:>9}: {row['successes']}/{row['episodes']} [{a:.1%}, {b:.1%}]")
+    if args.breakdown:
+        document["breakdown"] = {"of": str(args.breakdown), "by_demonstrator": breakdown(args.breakdown, shown)}
+        for name, table in document["breakdown"]["by_demonstrator"].items():
+            print(f"{args.breakdown.name}, {name}: " + ", ".join(f"{who} {row['successes']}/{row['episodes']}"
+                                                                 for who, row in table.items()))
     names = list(results)
     document["paired"] = {f"{a} - {b}": {f"{a}_only": sum(x.success and not y.success
                                                            for x, y in zip(results[a], results[b])),
