@@ -66,3 +66,15 @@ def test_a_watched_demonstration_gives_the_action_and_the_effect_on_the_robots_t
     np.testing.assert_allclose(seen.displacement, shown.displacement, atol=2e-3)  # m, robot table
     assert abs(np.angle(np.exp(4j * (seen.turn - shown.turn))) / 4.0) < np.radians(5.0)
     assert len(watched.frames) == len(truth.H)
+
+
+def test_a_demonstration_without_a_block_in_view_is_not_recognised():
+    """A table filmed without a person or a block: the watcher reads no action (the camera policy then ends
+    its episode "not recognised" instead of acting on a guess)."""
+    camera = DEMONSTRATOR_CAMERA
+    empty = np.full((camera.height, camera.width, 3), 200, np.uint8)
+    empty[camera.height // 2:] = (150, 110, 70)  # the table's edge: an image with edges, as a camera gives
+    shown = Demonstration(np.repeat(empty[None], 2 * REST_FRAMES + 5, axis=0), camera, 100.0, empty)
+    watched = watch(load_default_models(), shown, particles=50)
+    assert watched.reading.action is None
+    assert np.isnan(watched.reading.object_start).all()
