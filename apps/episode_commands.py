@@ -74,6 +74,11 @@ def demo_command(args: argparse.Namespace) -> int:
         if "perception_error_m" in summary and summary["perception_error_m"]["max"] is not None:
             print(f"  largest perception error of a target peg or hole: "
                   f"{1000 * summary['perception_error_m']['max']:.2f} mm")
+        read = [e for e in results[name] if e.reading_s is not None]
+        if read:  # an imitation policy: its time reading the demonstration apart from its acting
+            acting = [e.wall_s - e.reset_s - e.reading_s - (e.filming_s or 0.0) for e in read]
+            print(f"  per episode: reading the demonstration {sum(e.reading_s for e in read) / len(read):.1f} s, "
+                  f"acting {sum(acting) / len(acting):.1f} s")
     if args.video:
         print(f"video of episode {args.film} ({names[0]}, seed {args.seed + args.film}, camera {args.camera}): "
               f"{args.video}")

@@ -25,6 +25,7 @@ def test_a_replayed_episode_is_imitated_and_filmed_beside_its_demonstration(smal
                  "--seed", "5", "--video", str(video), "--json", str(report)]) == 0
     out = capsys.readouterr().out
     assert f"demonstrations from {small_recording}" in out and "over 1 episodes" in out
+    assert "per episode: reading the demonstration" in out
     document = json.loads(report.read_text())
     assert document["reset_options"] == [{"demonstration": [str(small_recording), APPROACH]}]
     episode = document["policies"]["imitation-markers"]["episodes"][0]
