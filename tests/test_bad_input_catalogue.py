@@ -277,7 +277,7 @@ def no_long_work(monkeypatch):
     def forbidden(*args, **kwargs):
         raise AssertionError("long work started before the arguments and outputs were checked")
 
-    import hoap_actions.apps.cli as cli_module
+    import hoap_actions.apps.episode_commands as cli_module
     import hoap_actions.demonstration.recording as recording
     import hoap_actions.primitives.pipelines.discover as discovery_files
 

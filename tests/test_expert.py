@@ -56,8 +56,9 @@ def test_policies_are_found_by_name_with_their_control_mode():
     assert policy_class("scripted") is ScriptedExpert and ScriptedExpert.control_mode == "ee_delta"
     assert policy_class("random").control_mode == "joint_delta"
     with pytest.raises(InvalidInputError,
-                       match=r"unknown policy 'nope'; accepted: \['bc', 'imitation-camera', 'imitation-markers', "
-                             r"'imitation-oracle', 'nothing', 'phmm', 'random', 'scripted', 'straight'\]"):
+                       match=r"unknown policy 'nope'; accepted: \['bc', 'imitation-camera', 'imitation-frequent', "
+                             r"'imitation-markers', 'imitation-oracle', 'nothing', 'phmm', 'random', 'scripted', "
+                             r"'straight'\]"):
         policy_class("nope")
 
 
