@@ -267,3 +267,22 @@ def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float,
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))
+
+
+def paired_outcomes(first: Sequence[dict], second: Sequence[dict], resamples: int = 10_000) -> dict[str, Any]:
+    """Two runs' episodes on the same seeds (``summarise``'s episode dictionaries, in the same order):
+    the episodes only one solved, the exact McNemar p, and the success rate difference ``first - second``
+    with its 95 % bootstrap interval over episodes (resampling seeded 0)."""
+    from scipy import stats
+
+    if [e["seed"] for e in first] != [e["seed"] for e in second]:
+        raise InvalidInputError("paired_outcomes needs the two runs' episodes on the same seeds, in the same order")
+    x = np.array([e["success"] for e in first], dtype=float)
+    y = np.array([e["success"] for e in second], dtype=float)
+    only_a, only_b = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
+    p = stats.binomtest(min(only_a, only_b), only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
+    rows = np.random.default_rng(0).integers(0, len(x), size=(resamples, len(x)))
+    differences = (x[rows] - y[rows]).mean(axis=1)
+    return {"difference": float((x - y).mean()), "difference_ci95": np.percentile(differences, [2.5, 97.5]).tolist(),
+            "only_first": only_a, "only_second": only_b, "mcnemar_p": float(p)}
+

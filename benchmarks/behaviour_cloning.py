@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hoap_actions.apps.episodes import compare_policies, summarise
+from hoap_actions.apps.episodes import compare_policies, paired_outcomes, summarise
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json
@@ -84,21 +84,6 @@ def collect_shards(seeds: list[int], workers: int) -> list[float]:
     if workers == 1:
         return [_collect_shard(s) for s in seeds]
     return list(ordered_map(_collect_shard, seeds, _no_setup, (), workers))
-
-
-def paired(a: list[dict], b: list[dict], resamples: int = 10_000) -> dict:
-    """Two policies on the same layouts: layouts only one solved, the exact McNemar p, and the success
-    rate difference ``a - b`` with its 95 % bootstrap interval over layouts (seed 0)."""
-    from scipy import stats
-
-    x = np.array([e["success"] for e in a], dtype=float)
-    y = np.array([e["success"] for e in b], dtype=float)
-    only_a, only_b = int(np.sum((x == 1) & (y == 0))), int(np.sum((x == 0) & (y == 1)))
-    p = stats.binomtest(min(only_a, only_b), only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
-    rows = np.random.default_rng(0).integers(0, len(x), size=(resamples, len(x)))
-    differences = (x[rows] - y[rows]).mean(axis=1)
-    return {"difference": float((x - y).mean()), "difference_ci95": np.percentile(differences, [2.5, 97.5]).tolist(),
-            "only_first": only_a, "only_second": only_b, "mcnemar_p": float(p)}
 
 
 LIFTED_M = 0.02  # the target peg's bottom this high over the table: it was grasped and lifted
@@ -291,7 +276,7 @@ def main() -> None:
         print(f"{name:>9}: success {summary['success_rate']:.1%} [{low:.1%}, {high:.1%}] over {len(episodes)} layouts, "
               f"falls {summary['falls']}, mean episode {summary['mean_wall_s']:.1f} s, {summary['reasons']}")
     names = list(results)
-    document["paired"] = {f"{a} - {b}": paired(document[a]["episodes"], document[b]["episodes"])
+    document["paired"] = {f"{a} - {b}": paired_outcomes(document[a]["episodes"], document[b]["episodes"])
                           for i, a in enumerate(names) for b in names[i + 1:]}
     for pair, p in document["paired"].items():
         print(f"{pair}: {100 * p['difference']:+.1f} points [{100 * p['difference_ci95'][0]:+.1f}, "

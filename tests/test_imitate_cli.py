@@ -82,3 +82,20 @@ def test_reset_options_come_one_per_seed():
 
     with pytest.raises(InvalidInputError, match="one entry per seed"):
         compare_policies("hoap_actions/Imitate-v0", {"nothing": ("nothing", {})}, [1, 2], options=[None])
+
+
+def test_paired_outcomes_count_the_discordant_episodes_and_give_mcnemars_exact_p():
+    from hoap_actions.apps.episodes import paired_outcomes
+
+    def run(successes):
+        return [{"seed": k, "success": bool(s)} for k, s in enumerate(successes)]
+
+    first, second = run([1] * 5 + [1, 0, 0]), run([0] * 5 + [1, 0, 0])
+    out = paired_outcomes(first, second)
+    assert (out["only_first"], out["only_second"]) == (5, 0)
+    assert out["mcnemar_p"] == pytest.approx(2 * 0.5 ** 5)  # two-sided exact binomial of 0 in 5
+    assert out["difference"] == pytest.approx(5 / 8)
+    assert out["difference_ci95"][0] <= 5 / 8 <= out["difference_ci95"][1]
+    assert paired_outcomes(first, first)["mcnemar_p"] == 1.0
+    with pytest.raises(InvalidInputError, match="same seeds"):
+        paired_outcomes(first, run([1, 0]))
