@@ -98,10 +98,10 @@ def by_group(episodes: list, groups: dict[int, str], names: list[str]) -> dict[s
     """Successes, episodes and the Wilson interval per group (a demonstrated action, a demonstrator) of the
     episodes' seeds; ``episodes`` are results or their summaries' dictionaries."""
     table = {}
-    for action in names:
-        mine = [e for e in episodes if groups[_seed(e)] == action]
+    for name in names:
+        mine = [e for e in episodes if groups[_seed(e)] == name]
         successes = sum(_success(e) for e in mine)
-        table[action] = {"successes": successes, "episodes": len(mine),
+        table[name] = {"successes": successes, "episodes": len(mine),
                          "success_rate": successes / len(mine) if mine else None,
                          "success_ci95": wilson_interval(successes, len(mine))}
     return table

@@ -503,12 +503,15 @@ def _heading(T: np.ndarray) -> np.ndarray:
     norm = np.hypot(c, s)
     if norm < 1e-9:  # forearm vertical: any heading will do
         return np.eye(3)
-    c, s = c / norm, s / norm
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return _level(c / norm, s / norm)
 
 
 def _yaw_matrix(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
+    return _level(np.cos(angle), np.sin(angle))
+
+
+def _level(c: float, s: float) -> np.ndarray:
+    """The rotation about the vertical whose cosine and sine are ``c`` and ``s``."""
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 

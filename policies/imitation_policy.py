@@ -117,7 +117,7 @@ class BlockImitation(ABC):
         self.env = env
         self.hand = BlockHand(env)
         self.failure = None
-        self._reading_s = 0.0
+        self._reading_s = self._filming_s = 0.0
         self.finished = False
         self.program: Iterator[np.ndarray] | None = None
         self.skills: list[str] = []
@@ -142,8 +142,13 @@ class BlockImitation(ABC):
         return annotated_frames(demonstration, self.shown_markers(), MARKER_NAMES, lines)
 
     def reading_s(self) -> float:
-        """Wall time (s) this episode's :meth:`intent` took: reading the demonstration."""
+        """Wall time (s) this episode's :meth:`intent` took reading the demonstration (its filming left out)."""
         return self._reading_s
+
+    def filming_s(self) -> float:
+        """Wall time (s) the env took to film the demonstration when :meth:`intent` first asked for its
+        frames (a real camera films while the person acts); 0 for a policy that reads none."""
+        return self._filming_s
 
     @property
     def done(self) -> bool:
@@ -153,9 +158,9 @@ class BlockImitation(ABC):
     def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         self.hand.start(obs)
         self.failure, self.finished, self.skills = None, False, []
-        started = time.perf_counter()
+        started, self._filming_s = time.perf_counter(), 0.0
         self.shown = self.intent()
-        self._reading_s = time.perf_counter() - started
+        self._reading_s = time.perf_counter() - started - self._filming_s
         self.start_block = self.hand.look()
         if self.shown is None:
             self.failure = self.failure or "not recognised"
@@ -269,7 +274,6 @@ class CameraImitation(BlockImitation):
         self.models = load_default_models()
         self.particles, self.seed = particles, seed
         self.watched: WatchedDemonstration | None = None
-        self._watch_s = self._filming_s = 0.0
 
     def intent(self) -> Intent | None:
         from hoap_actions.imitation.watching import watch  # here: the tracker is not imported by every command
@@ -277,9 +281,7 @@ class CameraImitation(BlockImitation):
         started = time.perf_counter()
         demonstration = self._demonstration()  # the env films the person (rendered here, once): not reading time
         self._filming_s = time.perf_counter() - started
-        started = time.perf_counter()
         self.watched = watch(self.models, demonstration, self.particles, self.seed)
-        self._watch_s = time.perf_counter() - started
         reading = self.watched.reading
         if reading.action is None:
             return None
@@ -288,14 +290,6 @@ class CameraImitation(BlockImitation):
     def recognised(self) -> str:
         """The action this episode's watching gave (``"not recognised"`` when none)."""
         return self.watched.reading.action or "not recognised"
-
-    def reading_s(self) -> float:
-        """Wall time (s) this episode's watching took (the demonstration's frames made by the env excluded)."""
-        return self._watch_s
-
-    def filming_s(self) -> float:
-        """Wall time (s) the env took to make this episode's demonstration frames (a camera's, in a real room)."""
-        return self._filming_s
 
     def shown_markers(self) -> np.ndarray:
         """The markers the tracker estimated, frame by frame."""
