@@ -1,0 +1,136 @@
+"""A vector env whose first sub-env steps in the calling process while the others step in worker processes.
+
+Gymnasium's ``AsyncVectorEnv`` leaves the calling process idle while every sub-env steps in a worker,
+then wakes it to gather the answers: on a 2-core machine its two workers and the waiting caller share
+two cores, and each step pays the workers' and the caller's wake-ups and the caller's bookkeeping one
+after the other. Here the caller steps sub-env 0 itself while the workers step the rest, so the
+workers' round trip hides behind a step's physics (``benchmarks/vector_envs.py`` measures both).
+
+``gymnasium.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")`` makes one for every
+``hoap_actions`` env id (:func:`make_hybrid`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from copy import deepcopy
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
+
+from hoap_actions.errors import InvalidInputError
+
+__all__ = ["HybridVectorEnv", "make_hybrid"]
+
+
+class HybridVectorEnv(VectorEnv):
+    """``num_envs`` sub-envs made by ``env_fns``: the first in this process, the others in an
+    ``AsyncVectorEnv`` of worker processes (``worker_kwargs`` go to it). Autoreset is Gymnasium's
+    default, the next step (``AutoresetMode.NEXT_STEP``); observations and infos are batched as
+    Gymnasium's own vector envs batch them."""
+
+    def __init__(self, env_fns: Sequence[Callable[[], gymnasium.Env]], **worker_kwargs: Any) -> None:
+        if len(env_fns) < 2:
+            raise InvalidInputError(f"a hybrid vector env needs at least 2 sub-envs (1 here, the rest in workers); "
+                                    f"got {len(env_fns)}: use the env itself for one")
+        self.local = env_fns[0]()
+        try:
+            self.remote = AsyncVectorEnv(list(env_fns[1:]), autoreset_mode=AutoresetMode.NEXT_STEP, **worker_kwargs)
+        except BaseException:
+            self.local.close()
+            raise
+        self.num_envs = len(env_fns)
+        self.metadata = dict(self.local.metadata, autoreset_mode=AutoresetMode.NEXT_STEP)
+        self.spec = self.local.spec
+        self.render_mode = self.local.render_mode
+        self.single_observation_space = self.local.observation_space
+        self.single_action_space = self.local.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._observations = create_empty_array(self.single_observation_space, self.num_envs)
+        self._local_done = False
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every sub-env: ``seed`` an int (sub-env ``i`` gets ``seed + i``), one seed per sub-env or None."""
+        if seed is None:
+            seeds: list[int | None] = [None] * self.num_envs
+        elif isinstance(seed, int | np.integer):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise InvalidInputError(f"reset needs one seed per sub-env ({self.num_envs}); got {len(seeds)}")
+        self.remote.reset_async(seed=seeds[1:], options=options)
+        local_obs, local_info = self.local.reset(seed=seeds[0], options=options)
+        remote_obs, remote_info = self.remote.reset_wait()
+        self._local_done = False
+        return self._batch(local_obs, remote_obs), self._infos(local_info, remote_info)
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every sub-env with its row of ``actions``: the workers' first, then this process's."""
+        rows = list(iterate(self.action_space, actions))
+        self.remote.step_async(concatenate(self.remote.single_action_space, rows[1:],
+                                           create_empty_array(self.single_action_space, self.num_envs - 1)))
+        if self._local_done:
+            local_obs, local_info = self.local.reset()
+            local_reward, local_terminated, local_truncated = 0.0, False, False
+        else:
+            local_obs, local_reward, local_terminated, local_truncated, local_info = self.local.step(rows[0])
+        self._local_done = bool(local_terminated or local_truncated)
+        remote_obs, rewards, terminations, truncations, remote_info = self.remote.step_wait()
+        return (self._batch(local_obs, remote_obs),
+                np.concatenate([[float(local_reward)], rewards]),
+                np.concatenate([[bool(local_terminated)], terminations]),
+                np.concatenate([[bool(local_truncated)], truncations]),
+                self._infos(local_info, remote_info))
+
+    def _batch(self, local_obs: Any, remote_obs: Any) -> Any:
+        singles = [local_obs, *iterate(self.remote.observation_space, remote_obs)]
+        return deepcopy(concatenate(self.single_observation_space, singles, self._observations))
+
+    def _infos(self, local_info: dict[str, Any], remote_info: dict[str, Any]) -> dict[str, Any]:
+        infos = self._add_info({}, local_info, 0)
+        for i, info in enumerate(_unbatched(remote_info, self.num_envs - 1)):
+            infos = self._add_info(infos, info, i + 1)
+        return infos
+
+    def render(self) -> tuple[Any, ...]:
+        return (self.local.render(), *self.remote.render())
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        attribute = self.local.get_wrapper_attr(name)
+        first = attribute(*args, **kwargs) if callable(attribute) else attribute
+        return (first, *self.remote.call(name, *args, **kwargs))
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        return (self.local.get_wrapper_attr(name), *self.remote.get_attr(name))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        try:
+            self.remote.close(**kwargs)
+        finally:
+            self.local.close()
+
+
+def _unbatched(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
+    """Gymnasium's batched infos (``key`` with its mask ``_key``) back to one dict per sub-env."""
+    out: list[dict[str, Any]] = [{} for _ in range(n)]
+    for key, value in infos.items():
+        if key.startswith("_") and key[1:] in infos:
+            continue
+        mask = infos.get(f"_{key}", np.ones(n, dtype=bool))
+        parts = _unbatched(value, n) if isinstance(value, dict) else None
+        for i in np.flatnonzero(mask):
+            out[i][key] = parts[i] if parts is not None else value[i]
+    return out
+
+
+def make_hybrid(env_id: str, num_envs: int, **kwargs: Any) -> HybridVectorEnv:
+    """``num_envs`` sub-envs of ``env_id`` made with ``kwargs``, the first in this process (the vector entry
+    point of every ``hoap_actions`` id)."""
+    vector_kwargs = kwargs.pop("vector_kwargs", None) or {}
+    return HybridVectorEnv([lambda: gymnasium.make(env_id, **kwargs)] * num_envs, **vector_kwargs)

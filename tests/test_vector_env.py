@@ -1,0 +1,63 @@
+"""The hybrid vector env against Gymnasium's own SyncVectorEnv: the same episodes, batched the same way."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+
+import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.envs.vector import HybridVectorEnv, make_hybrid
+from hoap_actions.errors import InvalidInputError
+
+ENV_ID = "hoap_actions/Reach-v1"
+EPISODE_STEPS = 4  # short episodes, so that the run crosses autoresets
+
+
+def _run(envs, seed: int, actions: np.ndarray) -> list:
+    out = [envs.reset(seed=seed)]
+    out += [envs.step(action) for action in actions]
+    envs.close()
+    return out
+
+
+def _same(a, b) -> None:
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for key in a:
+            _same(a[key], b[key])
+    elif isinstance(a, tuple | list):
+        assert len(a) == len(b)
+        for x, y in zip(a, b, strict=True):
+            _same(x, y)
+    else:
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+@pytest.mark.parametrize("num_envs", [2, 3])
+def test_steps_as_gymnasiums_sync_vector_env(num_envs):
+    """Every observation, reward, flag and info bit for bit as SyncVectorEnv's, autoresets included."""
+    kwargs = {"control_mode": "ee_delta", "max_episode_steps": EPISODE_STEPS}
+    actions = np.random.default_rng(3).uniform(-1, 1, (3 * EPISODE_STEPS, num_envs, 4)).astype(np.float32)
+    sync = _run(gymnasium.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="sync", **kwargs), 11, actions)
+    hybrid = _run(make_hybrid(ENV_ID, num_envs, **kwargs), 11, actions)
+    assert any(step[3].any() for step in sync[1:])  # the time limit ended episodes on the way
+    _same(hybrid, sync)
+
+
+def test_attributes_and_calls_reach_every_sub_env():
+    envs = make_hybrid(ENV_ID, 2, control_mode="ee_delta")
+    envs.reset(seed=[5, 9])
+    assert envs.get_attr("control_mode") == ("ee_delta", "ee_delta")
+    fields = envs.call("parse_observation", envs.single_observation_space.sample())
+    assert len(fields) == 2 and fields[0].keys() == fields[1].keys()
+    envs.close()
+
+
+def test_one_sub_env_or_a_wrong_seed_count_is_refused():
+    with pytest.raises(InvalidInputError, match="at least 2 sub-envs"):
+        HybridVectorEnv([lambda: gymnasium.make(ENV_ID)])
+    envs = make_hybrid(ENV_ID, 2)
+    with pytest.raises(InvalidInputError, match="one seed per sub-env"):
+        envs.reset(seed=[1, 2, 3])
+    envs.close()
