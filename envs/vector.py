@@ -13,11 +13,11 @@ workers' round trip hides behind a step's physics (``benchmarks/vector_envs.py``
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from copy import deepcopy
 from typing import Any
 
 import gymnasium
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
@@ -38,7 +38,8 @@ class HybridVectorEnv(VectorEnv):
                                     f"got {len(env_fns)}: use the env itself for one")
         self.local = env_fns[0]()
         try:
-            self.remote = AsyncVectorEnv(list(env_fns[1:]), autoreset_mode=AutoresetMode.NEXT_STEP, **worker_kwargs)
+            self.remote = AsyncVectorEnv(list(env_fns[1:]), autoreset_mode=AutoresetMode.NEXT_STEP,
+                                         **{"copy": False, **worker_kwargs})
         except BaseException:
             self.local.close()
             raise
@@ -50,7 +51,6 @@ class HybridVectorEnv(VectorEnv):
         self.single_action_space = self.local.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._observations = create_empty_array(self.single_observation_space, self.num_envs)
         self._local_done = False
 
     def reset(self, *, seed: int | list[int | None] | None = None,
@@ -68,35 +68,35 @@ class HybridVectorEnv(VectorEnv):
         local_obs, local_info = self.local.reset(seed=seeds[0], options=options)
         remote_obs, remote_info = self.remote.reset_wait()
         self._local_done = False
-        return self._batch(local_obs, remote_obs), self._infos(local_info, remote_info)
+        return _stacked(local_obs, remote_obs), self._infos(local_info, remote_info)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every sub-env with its row of ``actions``: the workers' first, then this process's."""
-        rows = list(iterate(self.action_space, actions))
-        self.remote.step_async(concatenate(self.remote.single_action_space, rows[1:],
-                                           create_empty_array(self.single_action_space, self.num_envs - 1)))
+        if isinstance(self.single_action_space, spaces.Box):
+            actions = np.asarray(actions)
+            first, rest = actions[0], actions[1:]
+        else:
+            rows = list(iterate(self.action_space, actions))
+            first = rows[0]
+            rest = concatenate(self.single_action_space, rows[1:],
+                               create_empty_array(self.single_action_space, self.num_envs - 1))
+        self.remote.step_async(rest)
         if self._local_done:
             local_obs, local_info = self.local.reset()
             local_reward, local_terminated, local_truncated = 0.0, False, False
         else:
-            local_obs, local_reward, local_terminated, local_truncated, local_info = self.local.step(rows[0])
+            local_obs, local_reward, local_terminated, local_truncated, local_info = self.local.step(first)
         self._local_done = bool(local_terminated or local_truncated)
         remote_obs, rewards, terminations, truncations, remote_info = self.remote.step_wait()
-        return (self._batch(local_obs, remote_obs),
+        return (_stacked(local_obs, remote_obs),
                 np.concatenate([[float(local_reward)], rewards]),
                 np.concatenate([[bool(local_terminated)], terminations]),
                 np.concatenate([[bool(local_truncated)], truncations]),
                 self._infos(local_info, remote_info))
 
-    def _batch(self, local_obs: Any, remote_obs: Any) -> Any:
-        singles = [local_obs, *iterate(self.remote.observation_space, remote_obs)]
-        return deepcopy(concatenate(self.single_observation_space, singles, self._observations))
-
     def _infos(self, local_info: dict[str, Any], remote_info: dict[str, Any]) -> dict[str, Any]:
-        infos = self._add_info({}, local_info, 0)
-        for i, info in enumerate(_unbatched(remote_info, self.num_envs - 1)):
-            infos = self._add_info(infos, info, i + 1)
-        return infos
+        """The local sub-env's info batched as Gymnasium batches it, the workers' batched infos after it."""
+        return _shifted(self._add_info({}, local_info, 0), remote_info, self.num_envs)
 
     def render(self) -> tuple[Any, ...]:
         return (self.local.render(), *self.remote.render())
@@ -116,17 +116,33 @@ class HybridVectorEnv(VectorEnv):
             self.local.close()
 
 
-def _unbatched(infos: dict[str, Any], n: int) -> list[dict[str, Any]]:
-    """Gymnasium's batched infos (``key`` with its mask ``_key``) back to one dict per sub-env."""
-    out: list[dict[str, Any]] = [{} for _ in range(n)]
-    for key, value in infos.items():
-        if key.startswith("_") and key[1:] in infos:
+def _stacked(first: Any, rest: Any) -> Any:
+    """One sub-env's observation put before a batch of the others' (dicts and tuples of arrays)."""
+    if isinstance(first, dict):
+        return {key: _stacked(value, rest[key]) for key, value in first.items()}
+    if isinstance(first, tuple):
+        return tuple(_stacked(value, others) for value, others in zip(first, rest, strict=True))
+    return np.concatenate([np.asarray(first)[None], rest])
+
+
+def _shifted(infos: dict[str, Any], rest: dict[str, Any], num_envs: int) -> dict[str, Any]:
+    """``infos`` (batched for ``num_envs``, sub-env 0 filled) with the batched infos ``rest`` of sub-envs
+    1.. written after it: a key the first sub-env lacks gets the array type the others' batch has."""
+    for key, value in rest.items():
+        if key.startswith("_") and key[1:] in rest:
             continue
-        mask = infos.get(f"_{key}", np.ones(n, dtype=bool))
-        parts = _unbatched(value, n) if isinstance(value, dict) else None
-        for i in np.flatnonzero(mask):
-            out[i][key] = parts[i] if parts is not None else value[i]
-    return out
+        mask = rest[f"_{key}"] if f"_{key}" in rest else None
+        if isinstance(value, dict):
+            infos[key] = _shifted(infos.get(key, {}), value, num_envs)
+            continue
+        if key not in infos:
+            infos[key] = np.zeros((num_envs, *value.shape[1:]), dtype=value.dtype) if value.dtype != object \
+                else np.full(num_envs, None, dtype=object)
+            infos[f"_{key}"] = np.zeros(num_envs, dtype=np.bool_)
+        infos[key][1:] = value
+        if mask is not None:
+            infos[f"_{key}"][1:] = mask
+    return infos
 
 
 def make_hybrid(env_id: str, num_envs: int, **kwargs: Any) -> HybridVectorEnv:
