@@ -158,6 +158,7 @@ def main() -> None:
                         help="also break an earlier run's policies on the same seeds down by demonstrator")
     parser.add_argument("--fit-seeds", type=int, nargs=2, default=VALIDATION_SEEDS, metavar=("FIRST", "STOP"),
                         help="the demonstrations the frequent-action baseline is fitted on (default: validation)")
+    parser.add_argument("--ik-period", type=int, help="physics ticks per hand IK step (default: the robot's own)")
     args = parser.parse_args()
     if args.output == RESULTS / "imitation.json":
         args.output = RESULTS / f"imitation_{args.robot}.json"
@@ -166,6 +167,8 @@ def main() -> None:
         parser.error("--fit-seeds overlap --seeds: the frequent-action baseline would see the demonstrations it is "
                      "scored on")
     env_kwargs = {"level": args.level, "demonstrator": args.demonstrator}
+    if args.ik_period is not None:
+        env_kwargs["ik_period"] = args.ik_period
     policies = {name: POLICIES[name] for name in args.policies}
     start = time.perf_counter()
     if "frequent" in policies:
@@ -179,7 +182,8 @@ def main() -> None:
     actions = {seed: row["action"] for seed, row in shown.items()}
     demonstrators = {seed: row["demonstrator"] for seed, row in shown.items()}
     document = {"env": ENV_ID, "level": args.level, "demonstrator": args.demonstrator or "drawn",
-                "seeds": list(args.seeds), "robot": args.robot, "workers": args.workers, "wall_s": wall,
+                "ik_period": args.ik_period, "seeds": list(args.seeds), "robot": args.robot, "workers": args.workers,
+                "wall_s": wall,
                 "environment": numeric_environment(None), "block_location": location}
     if "frequent" in policies:
         intent = policies["frequent"][1]["intent"]
