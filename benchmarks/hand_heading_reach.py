@@ -8,11 +8,13 @@ of a grid over the area where the robot's blocks start and end and at the height
 thumb push, for the IK's own heading turned by each of ``--turns`` degrees, and records the heading it
 reaches and how far the hand leaves its point (IK model only, no physics).
 
-    python benchmarks/hand_heading_reach.py [--robot fixed_legs|full]
+    python benchmarks/hand_heading_reach.py [--robot fixed_legs|full] [--hand right|left]
 
-Writes ``results/hand_heading_reach_<robot>.json``: per point and height, the IK's heading and, per asked
-turn, the turn reached (deg) and the hand's distance from its point (mm); and, over the points, the
-largest turn each way reached with the hand no further than ``--tolerance`` beyond where the IK alone puts it.
+``--hand left`` asks the same of the left hand (which the envs do not act with): where it reaches the
+block area and how it is headed there. Writes ``results/hand_heading_reach_<robot>[_left_hand].json``:
+per point and height, the IK's heading and, per asked turn, the turn reached (deg) and the hand's
+distance from its point (mm); and, over the points, the largest turn each way reached with the hand no
+further than ``--tolerance`` beyond where the IK alone puts it.
 """
 
 from __future__ import annotations
@@ -48,17 +50,20 @@ def main() -> None:
     parser.add_argument("--robot", default="fixed_legs", choices=list(ROBOT_MODELS))
     parser.add_argument("--turns", type=float, nargs="+", default=[-45, -30, -15, -5, 5, 15, 30, 45],
                         help="turns asked of the IK's own heading (deg)")
+    parser.add_argument("--hand", default="right", choices=["right", "left"],
+                        help="the hand asked (the envs act with the right one)")
     parser.add_argument("--tolerance", type=float, default=0.001, help="how much further from its point (m) than "
                         "without a heading the hand may end and still count as there")
     args = parser.parse_args()
     if args.output == RESULTS / "hand_heading_reach.json":
-        args.output = RESULTS / f"hand_heading_reach_{args.robot}.json"
+        suffix = "" if args.hand == "right" else f"_{args.hand}_hand"
+        args.output = RESULTS / f"hand_heading_reach_{args.robot}{suffix}.json"
     env = gymnasium.make("hoap_actions/Imitate-v0", robot=args.robot, control_mode="ee_delta")
     obs, _ = env.reset(seed=0)
     state = env.get_wrapper_attr("parse_observation")(obs)
     robot = env.get_wrapper_attr("robot_description")
     env.close()
-    ik = WholeBodyIK(robot.joint_names, rest_posture(robot), fixed_legs=robot.fixed_legs)
+    ik = WholeBodyIK(robot.joint_names, rest_posture(robot), fixed_legs=robot.fixed_legs, hand=args.hand)
     tolerance_mm = 1e3 * args.tolerance
     rows, ranges = [], []
     for name, z in HEIGHTS.items():
@@ -80,8 +85,9 @@ def main() -> None:
                       f"{tolerance_mm:.0f} mm of where it was: {ranges[-1][0]:+.1f} .. {ranges[-1][1]:+.1f} deg")
     summary = {"largest_right_turn_deg": min(r[0] for r in ranges), "largest_left_turn_deg": max(r[1] for r in ranges),
                "median_range_deg": float(np.median([r[1] - r[0] for r in ranges])), "per_point_range_deg": ranges}
-    write_json(args.output, {"robot": args.robot, "turns_asked_deg": args.turns, "tolerance_m": args.tolerance,
-                             "points": rows, "summary": summary, "environment": numeric_environment(None)})
+    write_json(args.output, {"robot": args.robot, "hand": args.hand, "turns_asked_deg": args.turns,
+                             "tolerance_m": args.tolerance, "points": rows, "summary": summary,
+                             "environment": numeric_environment(None)})
     print(f"over {len(rows)} points: turns reached, the hand within {tolerance_mm:.0f} mm of where it was, "
           f"{summary['largest_right_turn_deg']:+.1f} .. {summary['largest_left_turn_deg']:+.1f} deg; median range "
           f"{summary['median_range_deg']:.1f} deg")

@@ -62,7 +62,8 @@ __all__ = ["IKResult", "IKStatus", "Probe", "WholeBodyIK", "polygon_distance"]
 
 SOLE_HALF = (0.054, 0.0365)  # m, half length and width of the 108 x 73 mm HOAP-3 sole
 FEET = ("r_sole", "l_sole")
-HAND = "r_tcp"
+HANDS = {"right": "r_tcp", "left": "l_tcp"}
+"""The hand frame (tcp) of each side."""
 PELVIS = "pelvis"
 FROZEN = ("head_pan", "head_tilt", "head_roll", "r_gripper", "l_gripper")
 """Joints the IK leaves where they are: they move no task frame (the grippers are commanded apart)."""
@@ -74,8 +75,9 @@ IK_JOINT_LIMITS = {"r_knee": (-0.017, 1.1), "l_knee": (-0.017, 1.1), "waist_pitc
 robot 10 cm to reach the far left, the left arm meets the table and the pelvis drops below the fall
 threshold. Waist leaning at most 29 deg: further, the servos' 4.5 N m cannot hold the trunk and the
 robot topples (reaching for a target 1 m away did)."""
-HELD = ("l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw", "l_elbow", "l_wrist_yaw")
-"""The idle left arm: it follows the posture, it does not act as a counterweight."""
+ARM_JOINTS = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_yaw")
+ARMS = {side: tuple(f"{side[0]}_{joint}" for joint in ARM_JOINTS) for side in HANDS}
+"""Each arm's joints; the idle one is held (``held``): it follows the posture, not a counterweight."""
 POSTURE_RATE = 0.5  # rad/s at which the posture target moves from the reset posture to the rest posture
 COM_RATE = 0.02  # m/s at which the CoM target moves to the polygon's centre and the margin grows
 TILT_RATE = 0.5  # rad/s at which the hand's tilt target goes from its reset tilt to level
@@ -153,7 +155,7 @@ class WholeBodyIK:
     frozen
         joints the solver must not move (fewer free variables, a faster QP).
     held, held_weight
-        joints kept near their posture by a stronger soft task (per rad^2).
+        joints kept near their posture by a stronger soft task (per rad^2); default: the other arm's.
     joint_limits
         ranges (rad) narrower than the URDF's for the IK only, e.g. the knees.
     leg_damping
@@ -165,6 +167,9 @@ class WholeBodyIK:
     fixed_legs
         the robot's pelvis is fixed and its legs welded (they keep the angles given at
         :meth:`reset`); no balance tasks.
+    hand
+        the hand the position, tilt and heading tasks move: ``"right"`` (the envs' ee_delta hand) or
+        ``"left"`` (:data:`HANDS`).
     """
 
     def __init__(
@@ -183,13 +188,19 @@ class WholeBodyIK:
         com_margin: float = 0.03,
         tolerance: float = 3e-3,
         frozen: Sequence[str] = FROZEN,
-        held: Sequence[str] = HELD,
+        held: Sequence[str] | None = None,
         held_weight: float = 1.0,
         joint_limits: Mapping[str, tuple[float, float]] = IK_JOINT_LIMITS,
         leg_damping: float = LEG_DAMPING,
         body_speed: float = BODY_SPEED,
         fixed_legs: bool = False,
+        hand: str = "right",
     ) -> None:
+        if hand not in HANDS:
+            raise InvalidInputError(f"hand={hand!r} is not a hand; accepted: {sorted(HANDS)}")
+        self.hand_frame = HANDS[hand]
+        if held is None:
+            held = ARMS["left" if hand == "right" else "right"]
         self.joint_names = tuple(joint_names)
         self.fixed_legs = bool(fixed_legs)
         home = np.asarray(home_posture, dtype=float)
@@ -244,12 +255,12 @@ class WholeBodyIK:
             self._com = solver.add_com_task(np.zeros(3))
             self._com.mask.set_axises("xy")
             self._com.configure("com_xy", "soft", float(com_weight))
-        self._hand = solver.add_position_task(HAND, np.zeros(3))
+        self._hand = solver.add_position_task(self.hand_frame, np.zeros(3))
         self._hand.configure("hand", "soft", float(hand_weight))
         # Tilt only: the orientation target is re-levelled at the hand's current heading each solve
         # and the world-z error is masked, so the heading stays free. (placo's axis-align task
         # returns NaN when the axis is exactly aligned, as at the home posture.)
-        self._tilt = solver.add_orientation_task(HAND, np.eye(3))
+        self._tilt = solver.add_orientation_task(self.hand_frame, np.eye(3))
         self._tilt.mask.set_axises("xy", "task")
         self._tilt.configure("hand_tilt", "soft", float(axis_weight))
         self.heading_weight = float(heading_weight)
@@ -298,7 +309,7 @@ class WholeBodyIK:
         # Posture, CoM and margin start where the robot is and move to their goals at bounded rates
         # (see _settle): jumping to them at once would swing the body at full joint speed.
         self._posture_target = q.copy()
-        T_hand = robot.get_T_world_frame(HAND)
+        T_hand = robot.get_T_world_frame(self.hand_frame)
         self._hand.target_world = T_hand[:3, 3].copy()
         if self.fixed_legs:
             self._com_target, self._com_goal, self._margin = np.zeros(2), np.zeros(2), self.com_margin
@@ -380,7 +391,7 @@ class WholeBodyIK:
 
     def hand_position(self) -> np.ndarray:
         """The IK model's hand (tcp) position (3,) in the world (m)."""
-        return self.robot.get_T_world_frame(HAND)[:3, 3]
+        return self.robot.get_T_world_frame(self.hand_frame)[:3, 3]
 
     def com(self) -> np.ndarray:
         """The IK model's centre of mass (3,) in the world (m)."""
@@ -399,7 +410,7 @@ class WholeBodyIK:
         robot.state.q = state_q
         robot.set_T_world_fbase(T)
         robot.update_kinematics()
-        hand = robot.get_T_world_frame(HAND).copy()
+        hand = robot.get_T_world_frame(self.hand_frame).copy()
         robot.state.q = saved_q
         robot.set_T_world_fbase(saved_base)
         robot.update_kinematics()
@@ -427,12 +438,13 @@ class WholeBodyIK:
         error, turned = np.inf, np.inf
         for _ in range(iterations):
             result = self.solve(goal, heading)
-            now = 0.0 if heading is None else float(np.arctan2(*self.robot.get_T_world_frame(HAND)[[1, 0], 0]))
+            frame = self.robot.get_T_world_frame(self.hand_frame)
+            now = 0.0 if heading is None else float(np.arctan2(frame[1, 0], frame[0, 0]))
             if result.status == IKStatus.SOLVER_FAILED or (abs(error - result.hand_error) < 1e-7
                                                            and abs(turned - now) < 1e-7):
                 break
             error, turned = result.hand_error, now
-        rotation = self.robot.get_T_world_frame(HAND)[:3, :3].copy()
+        rotation = self.robot.get_T_world_frame(self.hand_frame)[:3, :3].copy()
         self._hold_heading(False)
         hand, self._posture_target, self._com_target, margin, self._tilt_rotvec, self._tilt_rotation, settled = saved
         self._hand.target_world = hand
@@ -450,7 +462,7 @@ class WholeBodyIK:
         """Put the heading task in the problem (``held``) or take it out: without one, the solver is the
         one without headings, unchanged."""
         if held and self._heading_task is None:
-            self._heading_task = self.solver.add_orientation_task(HAND, np.eye(3))
+            self._heading_task = self.solver.add_orientation_task(self.hand_frame, np.eye(3))
             self._heading_task.mask.set_axises("z", "world")
             self._heading_task.configure("hand_heading", "soft", self.heading_weight)
         elif not held and self._heading_task is not None:
@@ -468,7 +480,7 @@ class WholeBodyIK:
             robot.update_kinematics()
             # The task sees at most MAX_HAND_PULL of error: the trade-off against the other tasks
             # grows with the error, and a far target would otherwise drag the pelvis and the CoM.
-            T_hand = robot.get_T_world_frame(HAND)
+            T_hand = robot.get_T_world_frame(self.hand_frame)
             pull = target - T_hand[:3, 3]
             distance = float(np.linalg.norm(pull))
             self._hand.target_world = (T_hand[:3, 3] + pull * min(1.0, MAX_HAND_PULL / distance) if distance > 0.0
@@ -492,7 +504,7 @@ class WholeBodyIK:
             error_m = float(np.linalg.norm(self.hand_position() - target))
             return IKResult(self.q, IKStatus.SOLVER_FAILED, error_m)
         self._good_q = q.copy()
-        error_m = float(np.linalg.norm(robot.get_T_world_frame(HAND)[:3, 3] - target))
+        error_m = float(np.linalg.norm(robot.get_T_world_frame(self.hand_frame)[:3, 3] - target))
         status = IKStatus.OK if error_m <= self.tolerance else IKStatus.TARGET_UNREACHED
         return IKResult(q[self._q_index], status, error_m)
 

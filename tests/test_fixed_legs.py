@@ -224,3 +224,26 @@ def test_a_heading_asked_of_the_ik_turns_the_hand_where_the_arm_can():
     finally:
         for sim in sims:
             sim.close()
+
+
+def test_the_left_hand_ik_moves_the_left_hand_and_holds_the_right_arm():
+    """``hand="left"``: the left tcp reaches a point at the work area's far left (the left arm's side),
+    the right arm stays at its posture; a hand that is not one is refused."""
+    sims, (_, fixed) = _robots(world.FIXED_LEGS_FEET_XY)
+    try:
+        ik = WholeBodyIK(fixed.joint_names, rest_posture(fixed), fixed_legs=True, hand="left")
+        position, quat = fixed.base_pose()
+        q0 = rest_posture(fixed)
+        ik.reset(q0, position, quat)
+        point = np.array([0.0, 0.09, 0.03])
+        assert np.linalg.norm(ik.hand_position() - point) > 0.05
+        for _ in range(600):
+            ik.solve(point)
+        assert np.linalg.norm(ik.hand_position() - point) < 0.002
+        right = [fixed.joint_names.index(f"r_{j}") for j in ("shoulder_pitch", "shoulder_roll", "elbow")]
+        np.testing.assert_allclose(ik.q[right], q0[right], atol=0.05)
+        with pytest.raises(InvalidInputError, match="accepted: \\['left', 'right'\\]"):
+            WholeBodyIK(fixed.joint_names, rest_posture(fixed), fixed_legs=True, hand="middle")
+    finally:
+        for sim in sims:
+            sim.close()
