@@ -5,9 +5,7 @@ then wakes it to gather the answers: on a 2-core machine its two workers and the
 two cores, and each step pays the workers' and the caller's wake-ups and the caller's bookkeeping one
 after the other. Here the caller steps sub-env 0 itself while the workers step the rest, so the
 workers' round trip hides behind a step's physics (``benchmarks/vector_envs.py`` measures both).
-
-``gymnasium.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")`` makes one for every
-``hoap_actions`` env id (:func:`make_hybrid`).
+:func:`make_hybrid` makes one from an env id, as ``gymnasium.make_vec`` does.
 """
 
 from __future__ import annotations
@@ -74,6 +72,9 @@ class HybridVectorEnv(VectorEnv):
         """Step every sub-env with its row of ``actions``: the workers' first, then this process's."""
         if isinstance(self.single_action_space, spaces.Box):
             actions = np.asarray(actions)
+            if actions.shape != self.action_space.shape or not np.isfinite(actions).all():
+                raise InvalidInputError(f"actions must be {self.action_space.shape} finite numbers, one row per "
+                                        f"sub-env; got shape {actions.shape}")  # refused before any sub-env steps
             first, rest = actions[0], actions[1:]
         else:
             rows = list(iterate(self.action_space, actions))
@@ -81,11 +82,15 @@ class HybridVectorEnv(VectorEnv):
             rest = concatenate(self.single_action_space, rows[1:],
                                create_empty_array(self.single_action_space, self.num_envs - 1))
         self.remote.step_async(rest)
-        if self._local_done:
-            local_obs, local_info = self.local.reset()
-            local_reward, local_terminated, local_truncated = 0.0, False, False
-        else:
-            local_obs, local_reward, local_terminated, local_truncated, local_info = self.local.step(first)
+        try:
+            if self._local_done:
+                local_obs, local_info = self.local.reset()
+                local_reward, local_terminated, local_truncated = 0.0, False, False
+            else:
+                local_obs, local_reward, local_terminated, local_truncated, local_info = self.local.step(first)
+        except BaseException:
+            self.remote.step_wait()  # the workers' step is under way: collect it, so the vector env stays usable
+            raise
         self._local_done = bool(local_terminated or local_truncated)
         remote_obs, rewards, terminations, truncations, remote_info = self.remote.step_wait()
         return (_stacked(local_obs, remote_obs),

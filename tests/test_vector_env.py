@@ -61,3 +61,18 @@ def test_one_sub_env_or_a_wrong_seed_count_is_refused():
     with pytest.raises(InvalidInputError, match="one seed per sub-env"):
         envs.reset(seed=[1, 2, 3])
     envs.close()
+
+
+def test_bad_actions_are_refused_before_any_sub_env_steps():
+    envs = make_hybrid(ENV_ID, 2, control_mode="ee_delta")
+    envs.reset(seed=1)
+    good = np.zeros((2, 4), dtype=np.float32)
+    bad = good.copy()
+    bad[1, 0] = np.nan
+    with pytest.raises(InvalidInputError, match="finite numbers, one row per sub-env"):
+        envs.step(bad)
+    with pytest.raises(InvalidInputError, match="got shape \\(3, 4\\)"):
+        envs.step(np.zeros((3, 4)))
+    obs, reward, *_ = envs.step(good)  # still usable
+    assert reward.shape == (2,)
+    envs.close()
