@@ -64,7 +64,7 @@ class JointDeltaController:
 IK_PERIOD = {"full": 4, "fixed_legs": 4}
 """Physics ticks per retimer and IK step of ee_delta, per robot model (the env's ``ik_period``): the
 longest that kept the policies' success on validation layouts (``benchmarks/ik_period.py``); at 8 ticks
-a third to a half of those episodes ran out of time."""
+a third to a half of those episodes ran out of time. An env may keep its own (``HoapEnv.ik_periods``)."""
 MAX_HAND_STEP = 0.005  # m per action and axis (30 Hz): 0.15 m/s, the hand reference's speed limit
 HAND_BOX_LOW = np.array([world.WORK_AREA_LOW[0] - 0.04, world.WORK_AREA_LOW[1] - 0.05, 0.015])
 HAND_BOX_HIGH = np.array([world.WORK_AREA_HIGH[0] + 0.04, world.WORK_AREA_HIGH[1] + 0.05, 0.16])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import inspect
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
@@ -19,7 +19,7 @@ from gymnasium import spaces
 
 from hoap_actions.controllers.hand_control import RobotDescription
 from hoap_actions.envs.camera import Camera, check_image_size
-from hoap_actions.envs.controls import CONTROL_MODES, make_controller
+from hoap_actions.envs.controls import CONTROL_MODES, IK_PERIOD, make_controller
 from hoap_actions.envs.robot import ROBOT_MODELS, Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Sim
@@ -104,6 +104,8 @@ class HoapEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": int(round(240 / PHYSICS_STEPS_PER_ACTION))}
     task_cls: ClassVar[type[Task]]
+    ik_periods: ClassVar[Mapping[str, int]] = IK_PERIOD
+    """ee_delta's physics ticks per IK step by robot model when ``ik_period`` is not given."""
 
     def __init__(
         self,
@@ -145,6 +147,8 @@ class HoapEnv(gymnasium.Env):
             self.camera = camera
             self._render_camera = replace(self.sim.cameras[camera], width=render_width, height=render_height)
             self.task = self.task_cls(self.sim, self.robot, self.scene, **task_kwargs)
+            if ik_period is None and control_mode == "ee_delta":
+                ik_period = self.ik_periods[robot]
             self.controller = make_controller(control_mode, self.robot, ik_period)
             self.robot.reset()
             self.task.reset(np.random.default_rng(0))  # a first layout, only to size the observation

@@ -264,6 +264,10 @@ class ImitateEnv(HoapEnv):
 
     task_cls = ImitateTask
     task: ImitateTask
+    ik_periods = {"full": 4, "fixed_legs": 1}
+    """The welded robot's hand IK every tick here (the other envs: every 4): the block skills' servoed pushes
+    lost to 4 ticks, paired on held-out Imitate 94450-94649, execution ceiling 178 -> 163 of 200
+    (``docs/experiments/imitation.md``)."""
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         replay = self._replay_option(options)

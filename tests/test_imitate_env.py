@@ -269,3 +269,18 @@ def test_bad_replays_are_clear_errors(env, small_recording, tmp_path):
 def test_bad_constructor_values_are_explained(kwargs):
     with pytest.raises(InvalidInputError, match="accepted|must"):
         make(**kwargs)
+
+
+@pytest.mark.parametrize("env_id, robot, period", [
+    ("hoap_actions/Imitate-v0", "fixed_legs", 1), ("hoap_actions/Imitate-v0", "full", 4),
+    ("hoap_actions/PegInsert-v0", "fixed_legs", 4), ("hoap_actions/PegInsert-v0", "full", 4),
+])
+def test_each_env_steps_its_hand_ik_at_its_own_default_period_unless_told(env_id, robot, period):
+    env = gymnasium.make(env_id, robot=robot, control_mode="ee_delta")
+    told = gymnasium.make(env_id, robot=robot, control_mode="ee_delta", ik_period=2)
+    try:
+        assert env.unwrapped.controller.hand.ik_period == period
+        assert told.unwrapped.controller.hand.ik_period == 2
+    finally:
+        env.close()
+        told.close()
