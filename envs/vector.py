@@ -34,12 +34,13 @@ class HybridVectorEnv(VectorEnv):
         if len(env_fns) < 2:
             raise InvalidInputError(f"a hybrid vector env needs at least 2 sub-envs (1 here, the rest in workers); "
                                     f"got {len(env_fns)}: use the env itself for one")
-        self.local = env_fns[0]()
+        # the workers first: they start before this process holds a physics client a fork would copy
+        self.remote = AsyncVectorEnv(list(env_fns[1:]), autoreset_mode=AutoresetMode.NEXT_STEP,
+                                     **{"copy": False, **worker_kwargs})
         try:
-            self.remote = AsyncVectorEnv(list(env_fns[1:]), autoreset_mode=AutoresetMode.NEXT_STEP,
-                                         **{"copy": False, **worker_kwargs})
+            self.local = env_fns[0]()
         except BaseException:
-            self.local.close()
+            self.remote.close()
             raise
         self.num_envs = len(env_fns)
         self.metadata = dict(self.local.metadata, autoreset_mode=AutoresetMode.NEXT_STEP)
