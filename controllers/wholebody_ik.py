@@ -438,8 +438,7 @@ class WholeBodyIK:
         error, turned = np.inf, np.inf
         for _ in range(iterations):
             result = self.solve(goal, heading)
-            frame = self.robot.get_T_world_frame(self.hand_frame)
-            now = 0.0 if heading is None else float(np.arctan2(frame[1, 0], frame[0, 0]))
+            now = 0.0 if heading is None else _yaw(self.robot.get_T_world_frame(self.hand_frame))
             if result.status == IKStatus.SOLVER_FAILED or (abs(error - result.hand_error) < 1e-7
                                                            and abs(turned - now) < 1e-7):
                 break
@@ -488,7 +487,7 @@ class WholeBodyIK:
             level = _heading(T_hand)
             self._tilt.R_world_frame = level @ self._tilt_rotation
             if heading is not None:
-                now = float(np.arctan2(level[1, 0], level[0, 0]))
+                now = _yaw(level)
                 turn = float(np.clip(np.angle(np.exp(1j * (heading - now))), -MAX_HEADING_PULL, MAX_HEADING_PULL))
                 self._heading_task.R_world_frame = _yaw_matrix(now + turn) @ level.T @ T_hand[:3, :3]
             self.solver.solve(True)
@@ -516,6 +515,11 @@ def _heading(T: np.ndarray) -> np.ndarray:
     if norm < 1e-9:  # forearm vertical: any heading will do
         return np.eye(3)
     return _level(c / norm, s / norm)
+
+
+def _yaw(T: np.ndarray) -> float:
+    """The heading (rad) about the vertical of the x axis of ``T``."""
+    return float(np.arctan2(T[1, 0], T[0, 0]))
 
 
 def _yaw_matrix(angle: float) -> np.ndarray:

@@ -17,7 +17,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
+from gymnasium.vector.utils import batch_space
 
 from hoap_actions.errors import InvalidInputError
 
@@ -42,6 +42,10 @@ class HybridVectorEnv(VectorEnv):
         except BaseException:
             self.remote.close()
             raise
+        if not isinstance(self.local.action_space, spaces.Box):
+            self.close_extras()
+            raise InvalidInputError(f"a hybrid vector env batches Box action spaces (every hoap_actions env's); got "
+                                    f"{self.local.action_space}")
         self.num_envs = len(env_fns)
         self.metadata = dict(self.local.metadata, autoreset_mode=AutoresetMode.NEXT_STEP)
         self.spec = self.local.spec
@@ -71,17 +75,11 @@ class HybridVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every sub-env with its row of ``actions``: the workers' first, then this process's."""
-        if isinstance(self.single_action_space, spaces.Box):
-            actions = np.asarray(actions)
-            if actions.shape != self.action_space.shape or not np.isfinite(actions).all():
-                raise InvalidInputError(f"actions must be {self.action_space.shape} finite numbers, one row per "
-                                        f"sub-env; got shape {actions.shape}")  # refused before any sub-env steps
-            first, rest = actions[0], actions[1:]
-        else:
-            rows = list(iterate(self.action_space, actions))
-            first = rows[0]
-            rest = concatenate(self.single_action_space, rows[1:],
-                               create_empty_array(self.single_action_space, self.num_envs - 1))
+        actions = np.asarray(actions)
+        if actions.shape != self.action_space.shape or not np.isfinite(actions).all():
+            raise InvalidInputError(f"actions must be {self.action_space.shape} finite numbers, one row per "
+                                    f"sub-env; got shape {actions.shape}")  # refused before any sub-env steps
+        first, rest = actions[0], actions[1:]
         self.remote.step_async(rest)
         try:
             if self._local_done:
@@ -152,7 +150,9 @@ def _shifted(infos: dict[str, Any], rest: dict[str, Any], num_envs: int) -> dict
 
 
 def make_hybrid(env_id: str, num_envs: int, **kwargs: Any) -> HybridVectorEnv:
-    """``num_envs`` sub-envs of ``env_id`` made with ``kwargs``, the first in this process (the vector entry
-    point of every ``hoap_actions`` id)."""
+    """``num_envs`` (>= 2) sub-envs of ``env_id`` made with ``kwargs`` by ``gymnasium.make``, the first in this
+    process; ``vector_kwargs`` go to the workers' ``AsyncVectorEnv``."""
+    if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 2:
+        raise InvalidInputError(f"num_envs={num_envs!r}: a hybrid vector env needs a whole number >= 2 of sub-envs")
     vector_kwargs = kwargs.pop("vector_kwargs", None) or {}
     return HybridVectorEnv([lambda: gymnasium.make(env_id, **kwargs)] * num_envs, **vector_kwargs)

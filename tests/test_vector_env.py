@@ -57,6 +57,9 @@ def test_attributes_and_calls_reach_every_sub_env():
 def test_one_sub_env_or_a_wrong_seed_count_is_refused():
     with pytest.raises(InvalidInputError, match="at least 2 sub-envs"):
         HybridVectorEnv([lambda: gymnasium.make(ENV_ID)])
+    for bad in (1, 2.0, True):
+        with pytest.raises(InvalidInputError, match="whole number >= 2"):
+            make_hybrid(ENV_ID, bad)
     envs = make_hybrid(ENV_ID, 2)
     with pytest.raises(InvalidInputError, match="one seed per sub-env"):
         envs.reset(seed=[1, 2, 3])
