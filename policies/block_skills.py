@@ -43,6 +43,7 @@ from hoap_actions.vision.block import BlockDetection, locate_block
 
 __all__ = ["BlockHand", "BlockPose", "PushPlan", "closure_for", "run_up", "thumb_angle", "wrap_quarter"]
 
+
 logger = logging.getLogger(__name__)
 
 CAMERA = "overhead"
@@ -71,9 +72,17 @@ PUSH_GAP = 0.004  # m, gap between the thumb and the block before the push
 PUSH_ALONG = 0.03  # m, where along the thumb's outer face (from its back end) it meets the block
 PUSH_OVERSHOOT = 0.004  # m, a push ends once the block is this far past its target along the push
 MAX_PUSH = 0.08  # m, the longest push
+ON_LINE = 0.003  # m, a block this near the push's line through the target is pushed from where it is
+TURNED = np.radians(5.0)  # rad, a block turned this near its target needs no run-up to turn on the way
 RUN_UP = 0.012  # m, how far behind its target a block is placed for a push that must also turn it ...
 RUN_UP_PER_RADIAN = 0.03  # m, ... and this much further per radian it must turn (0.5 mm a degree) ...
 MAX_RUN_UP = 0.035  # m, ... up to this
+TURN_REACH = np.radians(6.0)  # rad, a target heading further than this past the thumb's reach is turned through ...
+OVERTURN = np.radians(15.0)  # rad, ... by a first push aimed to leave the block this far past it ...
+MIN_PAST = np.radians(8.0)  # rad, ... leaving it at least this far past (room for the turn back to cross) ...
+MAX_PAST = np.radians(33.0)  # rad, ... and at most this (36-38 degrees past, pushed back, it missed on validation)
+CROSSING = 0.006  # m, ... this far short of the target on the second push's line (where that push turns it back)
+SLOW_PUSH = 0.1  # of the hand's speed limit: the pushes of a turn through (0.5 mm a step, 1.5 mm between looks)
 LATERAL_GAIN = 0.7  # of the block's lateral error the hand moves per look: the thumb holds the block by friction
 THUMB_LOW = -THUMB_CONTACT_CLOSURE * THUMB_RANGE  # rad, the thumb's angle to the palm fully open (closure 0)
 THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (closure 1)
@@ -157,6 +166,7 @@ class BlockHand:
         self.grip = OPEN
         self.looks = 0
         self.seen: BlockDetection | None = None
+        self.skills: list[str] = []  # the skills run since :meth:`start`, in order
 
     # ------------------------------------------------------------------ state
     def start(self, obs: dict[str, np.ndarray]) -> None:
@@ -167,6 +177,7 @@ class BlockHand:
         self.desired = self.tcp.copy()
         self.grip = OPEN
         self.looks = 0
+        self.skills = []
         f = self.fields
         self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
 
@@ -245,6 +256,7 @@ class BlockHand:
     # ------------------------------------------------------------------ skills
     def approach(self, point_xy: np.ndarray) -> Iterator[np.ndarray]:
         """Point at ``point_xy`` (2,): the tcp over it, the palm a centimetre over the block's top."""
+        self.skills.append("approach")
         yield from self.travel(np.array([*point_xy, HOVER_Z]), OPEN)
         yield from self.hold(int(self._fps))  # held there: the hand settles on the point
 
@@ -258,6 +270,7 @@ class BlockHand:
         and keeps its turn on the way within a few degrees. Where it sits in the hand is looked at after
         the squeeze (which moves it), and the tcp's end is where that puts the block over the target
         (the hand's heading there asked of the IK model)."""
+        self.skills.append("place")
         heading = self.heading_at(np.array([*block.xy, GRASP_Z]))
         if wrap_quarter(block.yaw - heading) > GRASP_MISALIGNED:
             yield from self.align(block)
@@ -331,11 +344,12 @@ class BlockHand:
             tcp = self.tcp_for_contact(block_xy, heading, thumb, gap)
         return np.array([*tcp, PUSH_Z]), thumb
 
-    def plan_push(self, block: BlockPose, target_xy: np.ndarray, face: float) -> PushPlan:
+    def plan_push(self, block: BlockPose, target_xy: np.ndarray, face: float,
+                  overshoot: float = PUSH_OVERSHOOT) -> PushPlan:
         """A push of the block from ``block`` to ``target_xy`` (2,) by the thumb's outer face at heading
-        ``face`` (rad), along the face's outer normal."""
+        ``face`` (rad), along the face's outer normal, to ``overshoot`` (m) past the target."""
         start, thumb = self.contact_tcp(block.xy, face, PUSH_GAP)
-        end, _ = self.contact_tcp(target_xy, face, -PUSH_OVERSHOOT)
+        end, _ = self.contact_tcp(target_xy, face, -overshoot)
         return PushPlan(face, _unit(face - np.pi / 2), thumb, start, end)
 
     @staticmethod
@@ -349,10 +363,69 @@ class BlockHand:
         contact = outline[0] + PUSH_ALONG * along
         return block_xy - _rotation2(heading) @ (contact + (HALF + gap) * normal)
 
-    def push(self, plan: PushPlan, target_xy: np.ndarray) -> Iterator[np.ndarray]:
-        """Run a :class:`PushPlan`: the thumb set, down beside the block, then along the push with the
-        thumb's closure servoed to keep the face at its heading and the hand steered sideways by what the
-        camera sees of the block, until the block is :data:`PUSH_OVERSHOOT` past the target."""
+    def face_reached(self, target_xy: np.ndarray, face: float) -> float:
+        """The heading (rad) the thumb's outer face takes for a push that leaves the block at ``target_xy``
+        (2,) with the face asked at ``face`` (rad): ``face`` within the thumb's reach there, else the stop
+        nearest it."""
+        tcp, thumb = self.contact_tcp(target_xy, face, 0.0)
+        return self.heading_at(tcp) + thumb
+
+    def push_to(self, block: BlockPose, target_xy: np.ndarray, face: float, overshoot: float = PUSH_OVERSHOOT,
+                speed: float = PUSH_SPEED) -> Iterator[np.ndarray]:
+        """Push the block to ``target_xy`` (2,) with the face at ``face`` (rad), first sliding it behind the
+        target on the push's line (:meth:`place`, :func:`run_up` behind) when it is off that line or too
+        close to turn on the way. Returns False when the camera loses the block."""
+        plan = self.plan_push(block, target_xy, face, overshoot)
+        offset = target_xy - block.xy
+        ahead, aside = float(offset @ plan.direction), float(offset @ np.array([-plan.direction[1], plan.direction[0]]))
+        turn = abs(wrap_quarter(block.yaw - face))
+        if abs(aside) > ON_LINE or ahead < (0.0 if turn < TURNED else run_up(turn)):
+            yield from self.place(block, target_xy - run_up(turn) * plan.direction)
+            block = self.look()
+            if block is None:
+                return False
+            plan = self.plan_push(block, target_xy, face, overshoot)
+        yield from self.push(plan, target_xy, overshoot, speed)
+        return True
+
+    def overturn_face(self, target_xy: np.ndarray, yaw: float, face: float) -> float | None:
+        """The face (rad) of the first push of a turn through (:meth:`turn_through`) to ``target_xy`` (2,)
+        turned ``yaw`` (rad), ``face`` being the push's face there; None when the thumb's stop leaves
+        ``yaw`` within :data:`TURN_REACH` or no face it reaches leaves the block between
+        :data:`MIN_PAST` and :data:`MAX_PAST` past ``yaw`` (then the usual push is the better try)."""
+        miss = wrap_quarter(yaw - self.face_reached(target_xy, face))
+        if abs(miss) <= TURN_REACH:
+            return None
+        side = float(np.sign(miss))
+        short = target_xy - CROSSING * _unit(face - np.pi / 2)
+        first = self.push_face(short, yaw + side * OVERTURN)
+        past = side * wrap_quarter(self.face_reached(short, first) - yaw)
+        return first if MIN_PAST <= past <= MAX_PAST else None
+
+    def turn_through(self, block: BlockPose, target_xy: np.ndarray, face: float, first: float) -> Iterator[np.ndarray]:
+        """Leave the block at ``target_xy`` (2,) turned a heading the thumb cannot hold its face at (``face``,
+        the push's face, lies past the thumb's stop): a first push, with its face at ``first``
+        (:meth:`overturn_face`), leaves the block turned past the target's heading, :data:`CROSSING` short
+        of the target on the second push's line; the second, with the thumb at its stop, turns it back
+        towards the stop's heading, through the target's on the way, while it carries it onto the target.
+        Returns False when the camera loses the block."""
+        self.skills.append("turn through")
+        short = target_xy - CROSSING * _unit(face - np.pi / 2)
+        if not (yield from self.push_to(block, short, first, overshoot=0.0, speed=SLOW_PUSH)):
+            return False
+        block = self.look()
+        if block is None:
+            return False
+        yield from self.push(self.plan_push(block, target_xy, face), target_xy, speed=SLOW_PUSH)
+        return True
+
+    def push(self, plan: PushPlan, target_xy: np.ndarray, overshoot: float = PUSH_OVERSHOOT,
+             speed: float = PUSH_SPEED) -> Iterator[np.ndarray]:
+        """Run a :class:`PushPlan`: the thumb set, down beside the block, then along the push (at ``speed``
+        of the hand's limit) with the thumb's closure servoed to keep the face at its heading and the hand
+        steered sideways by what the camera sees of the block, until the block is ``overshoot`` (m) past
+        the target."""
+        self.skills.append("push")
         direction = plan.direction
         side = np.array([-direction[1], direction[0]])
 
@@ -366,21 +439,21 @@ class BlockHand:
         travelled = 0.0
         full = float((plan.end[:2] - plan.start[:2]) @ direction)
         while travelled < min(full, MAX_PUSH):
-            travelled += SERVO_LOOK_STEPS * PUSH_SPEED * MAX_HAND_STEP
+            travelled += SERVO_LOOK_STEPS * speed * MAX_HAND_STEP
             point = np.array([*(line + travelled * direction), PUSH_Z])
             for _ in range(SERVO_LOOK_STEPS):
                 self.grip = servo()
-                yield self._action(point, PUSH_SPEED)
+                yield self._action(point, speed)
             seen = self.look(SERVO_LOOK_SIZE)
             logger.debug("push: tcp %s travelled %.4f of %.4f, block seen %s", np.round(self.tcp, 4), travelled, full,
                          None if seen is None else np.round(seen.xy, 4))
             if seen is None:
                 continue
             error = target_xy - seen.xy
-            if error @ direction < -PUSH_OVERSHOOT:
+            if error @ direction < -overshoot:
                 break
             line = line + LATERAL_GAIN * float(error @ side) * side
-            full = travelled + float(error @ direction) + PUSH_OVERSHOOT
+            full = travelled + float(error @ direction) + overshoot
         yield from self.go([*(self.desired[:2] - PUSH_GAP * direction), PUSH_Z], speed=0.5, tolerance=0.004)
         yield from self.retreat()
 

@@ -39,7 +39,7 @@ from hoap_actions.envs import world
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.imitation.goals import block_turn
 from hoap_actions.models.shipped import load_default_models
-from hoap_actions.policies.block_skills import BlockHand, run_up, wrap_quarter
+from hoap_actions.policies.block_skills import BlockHand
 
 if TYPE_CHECKING:
     from hoap_actions.imitation.reading import DemonstrationReading
@@ -52,8 +52,6 @@ logger = logging.getLogger(__name__)
 
 ACTIONS = ("approach", "move", "push", "rotate")
 MAX_ATTEMPTS = 3  # tries at the block's target within one episode (each after a fresh look)
-ON_LINE = 0.003  # m, a block this near the push's line through the target is pushed from where it is
-TURNED = np.radians(5.0)  # rad, a block turned this near its target needs no run-up to turn on the way
 
 
 @dataclass(frozen=True)
@@ -120,7 +118,6 @@ class BlockImitation(ABC):
         self._reading_s = self._filming_s = 0.0
         self.finished = False
         self.program: Iterator[np.ndarray] | None = None
-        self.skills: list[str] = []
 
     @abstractmethod
     def intent(self) -> Intent | None:
@@ -151,13 +148,18 @@ class BlockImitation(ABC):
         return self._filming_s
 
     @property
+    def skills(self) -> list[str]:
+        """The hand skills this episode ran, in order (``"approach"``, ``"place"``, ``"push"``, ``"turn through"``)."""
+        return self.hand.skills
+
+    @property
     def done(self) -> bool:
         """True once every attempt has run (the block did not reach its target)."""
         return self.finished and self.failure is None
 
     def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         self.hand.start(obs)
-        self.failure, self.finished, self.skills = None, False, []
+        self.failure, self.finished = None, False
         started, self._filming_s = time.perf_counter(), 0.0
         self.shown = self.intent()
         self._reading_s = time.perf_counter() - started - self._filming_s
@@ -180,38 +182,29 @@ class BlockImitation(ABC):
     def _program(self) -> Iterator[np.ndarray]:
         shown, block = self.shown, self.start_block
         if shown.action == "approach":
-            self.skills.append("approach")
             yield from self.hand.approach(block.xy)
             return
         target = block.xy + shown.displacement
         yaw = block.yaw + shown.turn
         face = self.hand.push_face(target, yaw)
+        first = self.hand.overturn_face(target, yaw, face)  # None: the usual push
         if shown.action == "move":
-            self.skills.append("place")
             yield from self.hand.place(block, target)
         for _ in range(MAX_ATTEMPTS):
             block = self.hand.look()
             if block is None:
                 self.failure = "block not seen"
                 return
-            plan = self.hand.plan_push(block, target, face)
-            offset = target - block.xy
-            logger.debug("block at %s turned %.1f deg; target %s turned %.1f deg (face %.1f, thumb %.1f deg)",
+            logger.debug("block at %s turned %.1f deg; target %s turned %.1f deg (face %.1f deg%s)",
                          np.round(block.xy, 4), np.degrees(block.yaw), np.round(target, 4), np.degrees(yaw),
-                         np.degrees(face), np.degrees(plan.thumb))
-            ahead, aside = float(offset @ plan.direction), float(offset @ np.array([-plan.direction[1],
-                                                                                      plan.direction[0]]))
-            turn = abs(wrap_quarter(block.yaw - face))
-            if abs(aside) > ON_LINE or ahead < (0.0 if turn < TURNED else run_up(turn)):
-                self.skills.append("place")
-                yield from self.hand.place(block, target - run_up(turn) * plan.direction)
-                block = self.hand.look()
-                if block is None:
-                    self.failure = "block not seen"
-                    return
-                plan = self.hand.plan_push(block, target, face)
-            self.skills.append("push")
-            yield from self.hand.push(plan, target)
+                         np.degrees(face), "" if first is None else f", turned through from {np.degrees(first):.1f}")
+            if first is not None:
+                seen = yield from self.hand.turn_through(block, target, face, first)
+            else:
+                seen = yield from self.hand.push_to(block, target, face)
+            if not seen:
+                self.failure = "block not seen"
+                return
 
 
 class ExecutionCeiling(BlockImitation):
