@@ -11,7 +11,8 @@ side, and a cube pushed by a flat face turns until a face lies flat on it: a pus
 at the target's heading (the closure servoed against the hand's measured heading, every step) moves the
 block along the face's normal and leaves it turned as the target. That push is the skill every block
 target ends with; where the block is not already behind its target on that line, a grasp first slides
-it there (:meth:`BlockHand.place`).
+it there (:meth:`BlockHand.place`). Where no heading the thumb reaches is the target's, a turn through
+(:meth:`BlockHand.turn_through`) pushes the block past that heading first and then back through it.
 
 Skills are generators: each ``next()`` gives the ee_delta action for the current step, the hand's fields
 having been updated by :meth:`BlockHand.observe`. Hand paths are legs of the execution layer
@@ -27,7 +28,7 @@ the hand hides least of it), never from the simulator.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 
 import gymnasium
@@ -42,7 +43,6 @@ from hoap_actions.policies.grasp import THUMB_CONTACT_CLOSURE, THUMB_RANGE, thum
 from hoap_actions.vision.block import BlockDetection, locate_block
 
 __all__ = ["BlockHand", "BlockPose", "PushPlan", "closure_for", "run_up", "thumb_angle", "wrap_quarter"]
-
 
 logger = logging.getLogger(__name__)
 
@@ -112,6 +112,12 @@ def run_up(turn: float) -> float:
 
 def _unit(angle: float) -> np.ndarray:
     return np.array([np.cos(angle), np.sin(angle)])
+
+
+def _short_of(target_xy: np.ndarray, face: float) -> np.ndarray:
+    """Where a turn through's first push leaves the block: :data:`CROSSING` short of ``target_xy`` (2,) on
+    the line of the second push, whose face is at ``face`` (rad)."""
+    return target_xy - CROSSING * _unit(face - np.pi / 2)
 
 
 def _rotation2(angle: float) -> np.ndarray:
@@ -371,7 +377,7 @@ class BlockHand:
         return self.heading_at(tcp) + thumb
 
     def push_to(self, block: BlockPose, target_xy: np.ndarray, face: float, overshoot: float = PUSH_OVERSHOOT,
-                speed: float = PUSH_SPEED) -> Iterator[np.ndarray]:
+                speed: float = PUSH_SPEED) -> Generator[np.ndarray, None, bool]:
         """Push the block to ``target_xy`` (2,) with the face at ``face`` (rad), first sliding it behind the
         target on the push's line (:meth:`place`, :func:`run_up` behind) when it is off that line or too
         close to turn on the way. Returns False when the camera loses the block."""
@@ -397,12 +403,13 @@ class BlockHand:
         if abs(miss) <= TURN_REACH:
             return None
         side = float(np.sign(miss))
-        short = target_xy - CROSSING * _unit(face - np.pi / 2)
+        short = _short_of(target_xy, face)
         first = self.push_face(short, yaw + side * OVERTURN)
         past = side * wrap_quarter(self.face_reached(short, first) - yaw)
         return first if MIN_PAST <= past <= MAX_PAST else None
 
-    def turn_through(self, block: BlockPose, target_xy: np.ndarray, face: float, first: float) -> Iterator[np.ndarray]:
+    def turn_through(self, block: BlockPose, target_xy: np.ndarray, face: float,
+                     first: float) -> Generator[np.ndarray, None, bool]:
         """Leave the block at ``target_xy`` (2,) turned a heading the thumb cannot hold its face at (``face``,
         the push's face, lies past the thumb's stop): a first push, with its face at ``first``
         (:meth:`overturn_face`), leaves the block turned past the target's heading, :data:`CROSSING` short
@@ -410,7 +417,7 @@ class BlockHand:
         towards the stop's heading, through the target's on the way, while it carries it onto the target.
         Returns False when the camera loses the block."""
         self.skills.append("turn through")
-        short = target_xy - CROSSING * _unit(face - np.pi / 2)
+        short = _short_of(target_xy, face)
         if not (yield from self.push_to(block, short, first, overshoot=0.0, speed=SLOW_PUSH)):
             return False
         block = self.look()
