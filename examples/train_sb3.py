@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import json
 import sys
 import time
@@ -38,6 +39,7 @@ import gymnasium
 import numpy as np
 
 import hoap_actions  # noqa: F401  (registers the hoap_actions/* ids)
+from hoap_actions.envs.robot import ROBOT_MODELS
 from hoap_actions.envs.wrappers import RepeatAction, ResidualAction, SelectObservation
 from hoap_actions.errors import HoapActionsError
 from hoap_actions.outputs import claimed_directory, claimed_file
@@ -47,13 +49,15 @@ VALIDATION_FIRST_SEED = 50000  # the layouts that chose the settings below
 CONTROL_MODE = "ee_delta"
 
 SAVED_FILES = ("policy.zip", "normalize.pkl", "settings.json")  # what --save writes
+LEARNERS = {"sb3": ("stable_baselines3", "rl"), "sbx": ("sbx", "sbx")}  # --learner: its module and its extra
 
 
-def make_env(env_id: str, fields: list[str] | None, residual: float = 0.0, repeat: int = 1) -> gymnasium.Env:
-    """The env a policy trains and is evaluated on: the whole observation, or only ``fields`` of it; with
-    ``residual`` > 0, the policy's actions times ``residual`` are corrections to the straight-line reach's;
-    each decision held for ``repeat`` steps."""
-    env = gymnasium.make(env_id, control_mode=CONTROL_MODE)
+def make_env(env_id: str, fields: list[str] | None, residual: float = 0.0, repeat: int = 1,
+             robot: str = "full") -> gymnasium.Env:
+    """The env a policy trains and is evaluated on (``robot``: free-standing or with welded legs): the whole
+    observation, or only ``fields`` of it; with ``residual`` > 0, the policy's actions times ``residual`` are
+    corrections to the straight-line reach's; each decision held for ``repeat`` steps."""
+    env = gymnasium.make(env_id, control_mode=CONTROL_MODE, robot=robot)
     if residual:
         env = ResidualAction(env, StraightReach(env), scale=residual)
     if repeat > 1:
@@ -62,8 +66,8 @@ def make_env(env_id: str, fields: list[str] | None, residual: float = 0.0, repea
 
 
 def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normalize=lambda obs: obs,
-             residual: float = 0.0, repeat: int = 1) -> dict:
-    env = make_env(env_id, fields, residual, repeat)
+             residual: float = 0.0, repeat: int = 1, robot: str = "full") -> dict:
+    env = make_env(env_id, fields, residual, repeat, robot)
     successes = falls = 0
     final_distances = []
     for seed in seeds:
@@ -84,6 +88,11 @@ def evaluate(model, env_id: str, fields: list[str] | None, seeds: range, normali
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="hoap_actions/Reach-v1")
+    parser.add_argument("--robot", choices=list(ROBOT_MODELS), default="full",
+                        help="the free-standing robot (full, default) or the one with welded legs (fixed_legs)")
+    parser.add_argument("--learner", choices=list(LEARNERS), default="sb3",
+                        help="whose SAC learns: Stable-Baselines3's (PyTorch, default) or SBX's, the same algorithm "
+                             "and settings in JAX (pip install 'hoap-actions[sbx]'; docs/experiments/rl.md)")
     parser.add_argument("--steps", type=int, default=30000)
     parser.add_argument("--eval-every", type=int, default=10000)
     parser.add_argument("--seed", type=int, default=0)
@@ -120,9 +129,10 @@ def main() -> None:
                         help="normalise observations with running statistics (VecNormalize)")
     args = parser.parse_args()
     try:
-        import stable_baselines3  # noqa: F401  (only checks that it is installed)
+        importlib.import_module(LEARNERS[args.learner][0])
     except ImportError:
-        raise SystemExit('this example needs Stable-Baselines3: pip install "hoap-actions[rl]"') from None
+        raise SystemExit(f"--learner {args.learner} needs {LEARNERS[args.learner][0]}: pip install "
+                         f'"hoap-actions[{LEARNERS[args.learner][1]}]"') from None
 
     if min(args.steps, args.eval_every, args.eval_episodes, args.torch_threads) < 1 or args.eval_first_seed < 0 \
             or not 0.0 < args.gamma < 1.0 or not 0 <= args.demo_steps < args.steps \
@@ -140,7 +150,7 @@ def main() -> None:
         try:
             saved = json.loads((args.evaluate / "settings.json").read_text())
             # the env it acted in can be made
-            make_env(saved["env"], saved["fields"], *_residual_and_repeat(saved)).close()
+            make_env(saved["env"], saved["fields"], *_residual_and_repeat(saved), saved.get("robot", "full")).close()
         except (OSError, ValueError, KeyError, TypeError, HoapActionsError):
             print(f"error: {args.evaluate} holds no policy saved by --save (a readable settings.json naming its env)",
                   file=sys.stderr)
@@ -177,7 +187,7 @@ def main() -> None:
 
 def settings(args: argparse.Namespace) -> dict:
     """What a run was trained with: written beside its learning curve and its saved policy."""
-    return {"env": args.env, "control_mode": CONTROL_MODE,
+    return {"env": args.env, "robot": args.robot, "learner": args.learner, "control_mode": CONTROL_MODE,
             "algorithm": "SAC (residual on the straight-line reach)" if args.residual else "SAC + HER",
             "normalize": args.normalize, "fields": args.fields, "gamma": args.gamma, "demo_steps": args.demo_steps,
             "residual": args.residual, "residual_scale": args.residual_scale if args.residual else None,
@@ -188,6 +198,11 @@ def _residual_and_repeat(saved: dict) -> tuple[float, int]:
     """The residual's scale (0: none) and the action repeat a saved policy acted with (older saves: 1 and 1)."""
     residual = (saved.get("residual_scale") or 1.0) if saved["residual"] else 0.0
     return residual, saved.get("repeat", 1)
+
+
+def _sac(learner: str) -> type:
+    """The SAC class of ``learner`` (a key of :data:`LEARNERS`): both take the same settings and files."""
+    return importlib.import_module(LEARNERS[learner][0]).SAC
 
 
 def _share(value: float | None) -> str:
@@ -201,20 +216,20 @@ def _not_a_saved_policy(folder: Path) -> list[str]:
 
 def evaluate_saved(folder: Path, saved: dict, eval_seeds: range) -> dict:
     """Evaluate a policy saved by ``--save``, its normalisation statistics frozen."""
-    from stable_baselines3 import SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     residual, repeat = _residual_and_repeat(saved)
+    robot = saved.get("robot", "full")  # older saves: the free-standing robot, with SB3's SAC
     # HER's buffer asks for an env
-    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual, repeat)])
-    model = SAC.load(folder / "policy.zip", env=venv, device="cpu")
+    venv = DummyVecEnv([lambda: make_env(saved["env"], saved["fields"], residual, repeat, robot)])
+    model = _sac(saved.get("learner", "sb3")).load(folder / "policy.zip", env=venv, device="cpu")
     normalize = lambda obs: obs  # noqa: E731  (the identity, replaced when normalising)
     if (folder / "normalize.pkl").is_file():
         stats = VecNormalize.load(str(folder / "normalize.pkl"), venv)
         stats.training = False
         normalize = stats.normalize_obs
     try:
-        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize, residual, repeat)
+        return evaluate(model, saved["env"], saved["fields"], eval_seeds, normalize, residual, repeat, robot)
     finally:
         venv.close()
 
@@ -223,15 +238,16 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
     """Train with an evaluation every ``--eval-every`` steps; the learning curve. The policy is saved in
     ``folder`` (``policy.zip``, and ``normalize.pkl`` with ``--normalize``) when one is given."""
     import torch
-    from stable_baselines3 import SAC, HerReplayBuffer
+    from stable_baselines3 import HerReplayBuffer
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(args.torch_threads)
+    SAC = _sac(args.learner)
     residual = args.residual_scale if args.residual else 0.0
     venv = make_vec_env(make_env, n_envs=1, seed=args.seed,
                         env_kwargs={"env_id": args.env, "fields": args.fields, "residual": residual,
-                                    "repeat": args.repeat})
+                                    "repeat": args.repeat, "robot": args.robot})
     normalize = lambda obs: obs  # noqa: E731  (the identity, replaced when normalising)
     if args.normalize:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
@@ -257,14 +273,16 @@ def train(args: argparse.Namespace, eval_seeds: range, folder: Path | None) -> l
                                       else {"n_sampled_goal": 4, "goal_selection_strategy": "future"}),
                 learning_starts=max(1000, args.demo_steps // args.repeat), learning_rate=1e-3, gamma=args.gamma,
                 tau=0.05, batch_size=256, policy_kwargs={"net_arch": [256, 256]}, seed=args.seed, verbose=0)
-    curve, start = [], time.perf_counter()
+    curve, start, learning = [], time.perf_counter(), 0.0
     for _ in range(0, args.steps, args.eval_every):
+        began = time.perf_counter()
         model.learn(args.eval_every // args.repeat, reset_num_timesteps=False)  # decisions; the env's steps <= K times
+        learning += time.perf_counter() - began
         point = {"steps": int(model.num_timesteps) * args.repeat, "decisions": int(model.num_timesteps),
-                 "train_wall_s": time.perf_counter() - start,
+                 "train_wall_s": time.perf_counter() - start, "learn_wall_s": learning,
                  "training_success_last_100": (float(np.mean(model.ep_success_buffer)) if model.ep_success_buffer
                                                else None),
-                 **evaluate(model, args.env, args.fields, eval_seeds, normalize, residual, args.repeat)}
+                 **evaluate(model, args.env, args.fields, eval_seeds, normalize, residual, args.repeat, args.robot)}
         curve.append(point)
         if args.normalize:
             venv.training = True  # the statistics were frozen for the evaluation
