@@ -333,6 +333,15 @@ class Sim:
         self._p.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, orientation)))
         self._p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
 
+    def link_pose(self, name: str, link: int) -> tuple[np.ndarray, np.ndarray]:
+        """URDF-frame position (3,) and quaternion (4,) of one link (``-1`` = base frame): read every
+        control tick, so a link of its own body goes straight to PyBullet."""
+        if link < 0:
+            positions, quats = self.link_poses(name, [link])
+            return positions[0], quats[0]
+        state = self._p.getLinkState(self.body_id(name), link, computeForwardKinematics=True)
+        return np.array(state[4]), np.array(state[5])
+
     def link_poses(self, name: str, links: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """URDF-frame positions (L, 3) and quaternions (L, 4) of links (``-1`` = base frame)."""
         body = self.body_id(name)
@@ -395,13 +404,14 @@ class Sim:
         forces = np.asarray(forces, dtype=float).tolist()
         max_velocities = np.asarray(max_velocities, dtype=float).tolist()
         sent = self._sent_max_velocity.setdefault(body, {})
-        for j, q, f, v in zip(indices, positions, forces, max_velocities):
-            if sent.get(j) != v:
-                self._p.setJointMotorControl2(
-                    body, j, pybullet.POSITION_CONTROL, targetPosition=q, force=f, maxVelocity=v,
-                    positionGain=position_gain, velocityGain=velocity_gain,
-                )
-                sent[j] = v
+        if list(map(sent.get, indices)) != max_velocities:  # one comparison where, tick after tick, none changed
+            for j, q, f, v in zip(indices, positions, forces, max_velocities):
+                if sent.get(j) != v:
+                    self._p.setJointMotorControl2(
+                        body, j, pybullet.POSITION_CONTROL, targetPosition=q, force=f, maxVelocity=v,
+                        positionGain=position_gain, velocityGain=velocity_gain,
+                    )
+                    sent[j] = v
         n = len(indices)
         self._p.setJointMotorControlArray(
             body, indices, pybullet.POSITION_CONTROL, targetPositions=positions, forces=forces,

@@ -17,16 +17,21 @@ def run(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True, timeout=600)
 
 
-def test_saved_policy_evaluates_as_in_training_and_demonstrations_fill_the_warm_up(tmp_path):
+@pytest.mark.parametrize("learner, robot", [("sb3", "full"), ("sbx", "fixed_legs")])
+def test_saved_policy_evaluates_as_in_training_and_demonstrations_fill_the_warm_up(tmp_path, learner, robot):
     """The straight-line reference takes the first steps (its episodes succeed); the policy saved after training,
-    evaluated again from disk with its frozen statistics, ends every layout where the in-training evaluation did."""
+    evaluated again from disk with its frozen statistics (and its learner and robot), ends every layout where the
+    in-training evaluation did."""
+    if learner == "sbx":
+        pytest.importorskip("sbx")
     curve, saved = tmp_path / "curve.json", tmp_path / "policy"
     common = ["--normalize", "--eval-first-seed", "70010", "--eval-episodes", "2"]
     done = run(*common, "--steps", "400", "--demo-steps", "300", "--eval-every", "400", "--fields", "tcp_position",
-               "target", "--save", str(saved), "--json", str(curve))
+               "target", "--learner", learner, "--robot", robot, "--save", str(saved), "--json", str(curve))
     assert done.returncode == 0, done.stderr
     document = json.loads(curve.read_text())
     assert document["demo_steps"] == 300 and document["algorithm"] == "SAC + HER"
+    assert (document["learner"], document["robot"]) == (learner, robot)
     point = document["curve"][-1]
     assert point["training_success_last_100"] > 0  # uniform random actions reach nothing in 400 steps
     again = tmp_path / "again.json"
