@@ -114,6 +114,7 @@ class Scene:
             # exact cylinders: PyBullet's default hull would act 17 mm wide, as wide as the holes
             sim.load_urdf(name, "peg.urdf", (0.0, 0.1 * i, 1.0), implicit_cylinders=True)
             sim.set_color(name, PEG_COLOURS[name.removeprefix("peg_")])
+            sim.let_sleep(name)  # a resting peg costs a third of the welded robot's physics
             sim.set_dynamics(
                 name,
                 lateralFriction=PEG_LATERAL_FRICTION,

@@ -328,10 +328,12 @@ class Sim:
     def set_base_pose(
         self, name: str, position: np.ndarray, orientation: np.ndarray = (0.0, 0.0, 0.0, 1.0)
     ) -> None:
-        """Teleport a body's base (quaternion x, y, z, w) and zero its velocity."""
+        """Teleport a body's base (quaternion x, y, z, w) and zero its velocity; a sleeping body wakes
+        (:meth:`let_sleep`), or it would hang where it was put."""
         body = self.body_id(name)
         self._p.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, orientation)))
         self._p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+        self._p.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
 
     def link_pose(self, name: str, link: int) -> tuple[np.ndarray, np.ndarray]:
         """URDF-frame position (3,) and quaternion (4,) of one link (``-1`` = base frame): read every
@@ -448,6 +450,12 @@ class Sim:
         self._physical_link(name, link)
         self._record("set_dynamics", name, link, **kwargs)
         self._p.changeDynamics(body, link, **kwargs)
+
+    def let_sleep(self, name: str) -> None:
+        """Let the engine put a body to sleep once it has rested for about 2 s (Bullet's rule); a touch
+        wakes it. Three pegs resting on the table took 18 of a 53 us tick with the robot's legs welded."""
+        self._record("let_sleep", name)
+        self._p.changeDynamics(self.body_id(name), -1, activationState=pybullet.ACTIVATION_STATE_ENABLE_SLEEPING)
 
     def set_color(self, name: str, rgba: tuple[float, float, float, float], link: int = -1) -> None:
         body = self.body_id(name)

@@ -22,6 +22,7 @@ from hoap_actions.envs.scene import (
     PEG_COLOURS,
     PEG_LENGTH,
     PEG_MASS,
+    PEG_RADIUS,
     Layout,
     Scene,
 )
@@ -335,3 +336,19 @@ def test_front_camera_sees_the_table_and_board(scene):
     assert (segmentation == scene.sim.body_id("table")).mean() > 0.15
     assert (segmentation == scene.sim.body_id("hole_board")).sum() > 100
     assert image.depth.min() > 0.3  # the camera stands clear of the table, across from the robot
+
+
+def test_a_peg_asleep_on_the_table_drops_where_it_is_put_and_wakes_when_touched(scene):
+    """Resting pegs sleep (Sim.let_sleep): teleported, one wakes and drops into a hole; touched by
+    another peg, one wakes and is pushed aside (a sleeping body would stay where it was)."""
+    scene.apply(TURNED)
+    scene.sim.step(seconds(scene, 3.0))  # Bullet sends bodies at rest for 2 s to sleep
+    hole = scene.hole_positions()[1]
+    scene.sim.set_base_pose(scene.peg_names[0], (*hole[:2], scene.board_surface_z + 0.01 + PEG_LENGTH / 2))
+    scene.sim.step(seconds(scene, 1.5))
+    assert scene.peg_in_hole(0, 1)
+    resting, _ = scene.peg_pose(1)
+    # the other peg put 3 mm into the resting one, beside it on the table: the contact pushes both apart
+    scene.sim.set_base_pose(scene.peg_names[2], (resting[0] + 2 * PEG_RADIUS - 0.003, resting[1], resting[2]))
+    scene.sim.step(seconds(scene, 0.5))
+    assert np.linalg.norm(scene.peg_pose(1)[0] - resting) > 1e-3
