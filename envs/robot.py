@@ -130,6 +130,8 @@ class Robot:
         # A servo never turns faster than its top speed, whatever pushes the limb; the motors'
         # maxVelocity alone left contacts and the other joints whipping a joint to 23 rad/s.
         sim.set_joint_velocity_limits(name, self._indices, self.max_velocity[self._motorised])
+        self._motor_forces = self.max_force[self._motorised]  # sent with every target: sliced once
+        self._motor_velocities = self.max_velocity[self._motorised]
         self._links = {f: sim.link_index(name, f) for f in FRAMES}
         self._feet = [sim.link_index(name, f"{p}_foot") for p in "rl"]
         self._soles = [self._links["r_sole"], self._links["l_sole"]]
@@ -189,10 +191,9 @@ class Robot:
         same); :attr:`targets` shows what was sent.
         """
         self._targets = self._checked(q, "q")
-        motorised = self._motorised
         self.sim.set_joint_targets(
-            self.name, self._indices, self._targets[motorised], self.max_force[motorised],
-            self.max_velocity[motorised], self.position_gain, self.velocity_gain,
+            self.name, self._indices, self._targets[self._motorised], self._motor_forces,
+            self._motor_velocities, self.position_gain, self.velocity_gain,
         )
 
     def set_gripper(self, side: str, closure: float) -> None:
