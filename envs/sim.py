@@ -325,9 +325,7 @@ class Sim:
         lin, ang = self._p.getBaseVelocity(self.body_id(name))
         return np.array(lin), np.array(ang)
 
-    def set_base_pose(
-        self, name: str, position: np.ndarray, orientation: np.ndarray = (0.0, 0.0, 0.0, 1.0)
-    ) -> None:
+    def set_base_pose(self, name: str, position: np.ndarray, orientation: np.ndarray = (0.0, 0.0, 0.0, 1.0)) -> None:
         """Teleport a body's base (quaternion x, y, z, w) and zero its velocity; a sleeping body wakes
         (:meth:`let_sleep`), or it would hang where it was put."""
         body = self.body_id(name)
@@ -381,16 +379,8 @@ class Sim:
         for j, q in zip(indices, positions):
             self._p.resetJointState(body, j, float(q), 0.0)
 
-    def set_joint_targets(
-        self,
-        name: str,
-        indices: list[int],
-        positions: np.ndarray,
-        forces: np.ndarray,
-        max_velocities: np.ndarray,
-        position_gain: float = 0.3,
-        velocity_gain: float = 1.0,
-    ) -> None:
+    def set_joint_targets(self, name: str, indices: list[int], positions: np.ndarray, forces: np.ndarray,
+                          max_velocities: np.ndarray, position_gain: float = 0.3, velocity_gain: float = 1.0) -> None:
         """Position control with realistic torque limits (N m) and joint speed limits (rad/s).
 
         URDF velocity limits are ignored by PyBullet unless passed here as ``maxVelocity``. PyBullet
@@ -503,9 +493,8 @@ class Sim:
         return points, [names.get(hit[0]) for hit in results]
 
     # ------------------------------------- grasp constraints and proximity (demonstrator, envs/demonstrator.py)
-    def closest_distance(
-        self, name_a: str, name_b: str, link_a: int | None = None, max_distance: float = 0.05
-    ) -> float:
+    def closest_distance(self, name_a: str, name_b: str, link_a: int | None = None,
+                         max_distance: float = 0.05) -> float:
         """Smallest signed distance (m, negative = penetration) between body ``name_a`` (optionally one
         of its links) and body ``name_b``; ``inf`` when they are farther apart than ``max_distance``.
 
