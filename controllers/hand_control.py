@@ -185,6 +185,7 @@ class HandController:
         self.last = IKResult(np.asarray(robot.home_posture, dtype=float), IKStatus.OK, 0.0)
         self._phase = 0  # ticks done of the current IK step
         self._q_from = self._q_to = np.asarray(robot.home_posture, dtype=float)
+        self._q_change = np.zeros_like(self._q_to)  # from the last IK step's posture to this one's
 
     def reset(self) -> None:
         """Start from the robot's measured state, holding the hand where it is."""
@@ -224,9 +225,10 @@ class HandController:
         if self._phase == 0:
             self._q_from = self._q_to
             self._q_to = self._plan().q
+            self._q_change = self._q_to - self._q_from
         self._phase += 1
         q = self._q_to.copy() if self._phase == self.ik_period else (
-            self._q_from + (self._phase / self.ik_period) * (self._q_to - self._q_from))
+            self._q_from + (self._phase / self.ik_period) * self._q_change)
         q[self._gripper] = self.robot.targets[self._gripper]  # the gripper is commanded separately
         self.robot.set_targets(q)
         self._phase %= self.ik_period

@@ -232,8 +232,7 @@ class Robot:
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """World position (3,) and quaternion (x, y, z, w) of the pelvis frame (on the waist-pitch axis)."""
-        positions, quats = self.sim.link_poses(self.name, [-1])
-        return positions[0], quats[0]
+        return self.sim.link_pose(self.name, -1)
 
     def frame_pose(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
         """World position (3,) and quaternion (x, y, z, w) of a link frame such as ``"r_tcp"``.

@@ -334,31 +334,28 @@ class Sim:
         self._p.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
 
     def link_pose(self, name: str, link: int) -> tuple[np.ndarray, np.ndarray]:
-        """URDF-frame position (3,) and quaternion (4,) of one link (``-1`` = base frame): read every
-        control tick, so a link of its own body goes straight to PyBullet."""
-        if link < 0:
-            positions, quats = self.link_poses(name, [link])
-            return positions[0], quats[0]
-        state = self._p.getLinkState(self.body_id(name), link, computeForwardKinematics=True)
-        return np.array(state[4]), np.array(state[5])
+        """URDF-frame position (3,) and quaternion (4,) of one link (``-1`` = base frame); read every
+        control tick, so without :meth:`link_poses`' arrays."""
+        position, quat = self._link_pose(self.body_id(name), name, link)
+        return np.array(position), np.array(quat)
 
     def link_poses(self, name: str, links: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """URDF-frame positions (L, 3) and quaternions (L, 4) of links (``-1`` = base frame)."""
         body = self.body_id(name)
         positions, quats = np.empty((len(links), 3)), np.empty((len(links), 4))
         for row, link in enumerate(links):
-            if link < -1:  # folded into a kept link: that link's frame, then the fixed joints' offset
-                (host_position,), (host_quat,) = self.link_poses(name, [self._folded_hosts[name][-2 - link]])
-                pos, quat = self._p.multiplyTransforms(host_position, host_quat, *self._folded[name].offsets[-2 - link])
-            elif link == -1:
-                pos, quat = self._p.getBasePositionAndOrientation(body)
-                # the base's URDF frame differs from its centre-of-mass frame by the inertial offset
-                pos, quat = self._p.multiplyTransforms(pos, quat, *self._base_offset(body))
-            else:
-                state = self._p.getLinkState(body, link, computeForwardKinematics=True)
-                pos, quat = state[4], state[5]
-            positions[row], quats[row] = pos, quat
+            positions[row], quats[row] = self._link_pose(body, name, link)
         return positions, quats
+
+    def _link_pose(self, body: int, name: str, link: int) -> tuple:
+        if link < -1:  # folded into a kept link: that link's frame, then the fixed joints' offset
+            host_position, host_quat = self._link_pose(body, name, self._folded_hosts[name][-2 - link])
+            return self._p.multiplyTransforms(host_position, host_quat, *self._folded[name].offsets[-2 - link])
+        if link == -1:
+            # the base's URDF frame differs from its centre-of-mass frame by the inertial offset
+            return self._p.multiplyTransforms(*self._p.getBasePositionAndOrientation(body), *self._base_offset(body))
+        state = self._p.getLinkState(body, link, computeForwardKinematics=True)
+        return state[4], state[5]
 
     def _base_offset(self, body: int) -> tuple:
         """The base's centre-of-mass frame to its URDF frame; read once per body (its inertial frame
