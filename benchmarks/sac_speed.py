@@ -16,6 +16,7 @@ Writes ``results/sac_speed.json``; the figures and their history are in ``docs/e
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import statistics
 import subprocess
@@ -26,6 +27,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import arguments, numeric_environment, write_json
+
+from hoap_actions.envs.robot import ROBOT_MODELS
 
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "train_sb3.py"
 LEARNERS = ("sb3", "sbx")
@@ -42,7 +45,8 @@ def run_once(learner: str, seed: int, args: argparse.Namespace, folder: Path) ->
     done = subprocess.run(command, capture_output=True, text=True)
     wall = time.perf_counter() - start
     if done.returncode != 0:
-        raise SystemExit(f"{learner} seed {seed} failed: {done.stderr.strip().splitlines()[-1:]}")
+        last = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        raise SystemExit(f"{learner} seed {seed} failed: {last}")
     points = json.loads(curve.read_text())["curve"]
     print(f"{learner} seed {seed}: {wall / 60:.1f} min, learn {points[-1]['learn_wall_s'] / 60:.1f} min, success "
           + " / ".join(f"{p['success_rate']:.0%}" for p in points), flush=True)
@@ -53,13 +57,18 @@ def run_once(learner: str, seed: int, args: argparse.Namespace, folder: Path) ->
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[arguments("sac_speed.json")])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--robot", default="fixed_legs")
+    parser.add_argument("--robot", choices=list(ROBOT_MODELS), default="fixed_legs")
     parser.add_argument("--env", default="hoap_actions/Reach-v1")
     parser.add_argument("--steps", type=int, default=50000)
     parser.add_argument("--eval-every", type=int, default=10000)
     parser.add_argument("--eval-first-seed", type=int, default=50000)
     parser.add_argument("--eval-episodes", type=int, default=50)
     args = parser.parse_args(argv)
+    missing = [module for module in ("stable_baselines3", "sbx") if importlib.util.find_spec(module) is None]
+    if missing or min(args.steps, args.eval_every, args.eval_episodes) < 1 or min(args.seeds) < 0:
+        # checked before the first run: a missing learner would otherwise fail after a quarter of an hour
+        parser.error(f"needs {missing} (pip install 'hoap-actions[rl,sbx]')" if missing else
+                     "--steps, --eval-every and --eval-episodes must be >= 1 and --seeds >= 0")
     runs = []
     with tempfile.TemporaryDirectory() as folder:
         for k, seed in enumerate(args.seeds):

@@ -339,10 +339,14 @@ def test_front_camera_sees_the_table_and_board(scene):
 
 
 def test_a_peg_asleep_on_the_table_drops_where_it_is_put_and_wakes_when_touched(scene):
-    """Resting pegs sleep (Sim.let_sleep): teleported, one wakes and drops into a hole; touched by
-    another peg, one wakes and is pushed aside (a sleeping body would stay where it was)."""
+    """Resting pegs sleep (Sim.let_sleep: asleep, a peg's pose does not change by a bit): teleported, one
+    wakes and drops into a hole; touched by another peg, one wakes and is pushed aside (a sleeping body
+    would stay where it was)."""
     scene.apply(TURNED)
     scene.sim.step(seconds(scene, 3.0))  # Bullet sends bodies at rest for 2 s to sleep
+    asleep = np.concatenate(scene.peg_pose(1))
+    scene.sim.step(seconds(scene, 0.5))
+    np.testing.assert_array_equal(np.concatenate(scene.peg_pose(1)), asleep)  # awake, it creeps by ~1e-7 m
     hole = scene.hole_positions()[1]
     scene.sim.set_base_pose(scene.peg_names[0], (*hole[:2], scene.board_surface_z + 0.01 + PEG_LENGTH / 2))
     scene.sim.step(seconds(scene, 1.5))
