@@ -134,6 +134,7 @@ class Sim:
         self._folded_hosts: dict[str, list[int]] = {}  # per body, the link index each folded link rides on
         self._recipe: list[tuple[str, tuple, dict]] = []
         self._sent_max_velocity: dict[int, dict[int, float]] = {}  # per body and joint, the motor's speed cap
+        self._sleepers: set[int] = set()  # bodies the engine may put to sleep (let_sleep)
         self.cameras: dict[str, Camera] = {}
         self._configure_world()
         p = self._client
@@ -170,6 +171,7 @@ class Sim:
             self._folded.clear()
             self._folded_hosts.clear()
             self._sent_max_velocity.clear()
+            self._sleepers.clear()
             self._configure_world()
             for method, args, kwargs in recipe:
                 getattr(self, method)(*args, **kwargs)
@@ -331,7 +333,8 @@ class Sim:
         body = self.body_id(name)
         self._p.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, orientation)))
         self._p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
-        self._p.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
+        if body in self._sleepers:
+            self._p.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
 
     def link_pose(self, name: str, link: int) -> tuple[np.ndarray, np.ndarray]:
         """URDF-frame position (3,) and quaternion (4,) of one link (``-1`` = base frame); read every
@@ -442,7 +445,9 @@ class Sim:
         """Let the engine put a body to sleep once it has rested for about 2 s (Bullet's rule); a touch
         wakes it. Three pegs resting on the table took 18 of a 53 us tick with the robot's legs welded."""
         self._record("let_sleep", name)
-        self._p.changeDynamics(self.body_id(name), -1, activationState=pybullet.ACTIVATION_STATE_ENABLE_SLEEPING)
+        body = self.body_id(name)
+        self._sleepers.add(body)
+        self._p.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_ENABLE_SLEEPING)
 
     def set_color(self, name: str, rgba: tuple[float, float, float, float], link: int = -1) -> None:
         body = self.body_id(name)
