@@ -30,6 +30,7 @@ the energy of each swing, measured).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -249,8 +250,9 @@ class HandController:
             step = self.retimer.step(np.round(target, 9))
         self.reference, self._velocity = step.position, step.velocity
         error = self.reference - measured
-        if self.integral_gain > 0.0 and not self.yielding and np.linalg.norm(step.velocity) < AT_REST_SPEED:
-            if np.linalg.norm(error) < INTEGRAL_MAX_ERROR:
+        speed = step.velocity
+        if self.integral_gain > 0.0 and not self.yielding and math.sqrt(speed @ speed) < AT_REST_SPEED:
+            if math.sqrt(error @ error) < INTEGRAL_MAX_ERROR:
                 self._correction += self.integral_gain * self.dt * error
                 np.clip(self._correction, -INTEGRAL_LIMIT, INTEGRAL_LIMIT, out=self._correction)
         target = self.reference + self._correction

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import enum
 import logging
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -481,7 +482,7 @@ class WholeBodyIK:
             # grows with the error, and a far target would otherwise drag the pelvis and the CoM.
             T_hand = robot.get_T_world_frame(self.hand_frame)
             pull = target - T_hand[:3, 3]
-            distance = float(np.linalg.norm(pull))
+            distance = math.sqrt(pull @ pull)  # np.linalg.norm's own sum, without its dispatch
             self._hand.target_world = (T_hand[:3, 3] + pull * min(1.0, MAX_HAND_PULL / distance) if distance > 0.0
                                        else target)
             level = _heading(T_hand)
@@ -493,7 +494,7 @@ class WholeBodyIK:
             self.solver.solve(True)
             robot.update_kinematics()
             q = robot.state.q
-            if not np.all(np.isfinite(q)):
+            if not math.isfinite(q @ q):  # NaN or inf in any angle (or one beyond 1e154 rad)
                 raise FloatingPointError("non-finite IK solution")
         except (RuntimeError, FloatingPointError) as error:
             logger.debug("IK step failed (%s); holding the last good posture", error)
@@ -503,7 +504,8 @@ class WholeBodyIK:
             error_m = float(np.linalg.norm(self.hand_position() - target))
             return IKResult(self.q, IKStatus.SOLVER_FAILED, error_m)
         self._good_q = q.copy()
-        error_m = float(np.linalg.norm(robot.get_T_world_frame(self.hand_frame)[:3, 3] - target))
+        miss = robot.get_T_world_frame(self.hand_frame)[:3, 3] - target
+        error_m = math.sqrt(miss @ miss)
         status = IKStatus.OK if error_m <= self.tolerance else IKStatus.TARGET_UNREACHED
         return IKResult(q[self._q_index], status, error_m)
 

@@ -11,11 +11,14 @@ policies do not depend on the model; quaternions are ``(x, y, z, w)``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
 from hoap_actions.envs import world
+from hoap_actions.envs.motors import MotorGroup
 from hoap_actions.envs.sim import Sim
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.urdf import LEG_JOINTS, STANDING_LEGS, standing_leg_angle
@@ -130,8 +133,8 @@ class Robot:
         # A servo never turns faster than its top speed, whatever pushes the limb; the motors'
         # maxVelocity alone left contacts and the other joints whipping a joint to 23 rad/s.
         sim.set_joint_velocity_limits(name, self._indices, self.max_velocity[self._motorised])
-        self._motor_forces = self.max_force[self._motorised]  # sent with every target: sliced once
-        self._motor_velocities = self.max_velocity[self._motorised]
+        self._motors = MotorGroup.of(name, self._indices, self.max_force[self._motorised],
+                                     self.max_velocity[self._motorised], self.position_gain, self.velocity_gain)
         self._links = {f: sim.link_index(name, f) for f in FRAMES}
         self._feet = [sim.link_index(name, f"{p}_foot") for p in "rl"]
         self._soles = [self._links["r_sole"], self._links["l_sole"]]
@@ -191,10 +194,7 @@ class Robot:
         same); :attr:`targets` shows what was sent.
         """
         self._targets = self._checked(q, "q")
-        self.sim.set_joint_targets(
-            self.name, self._indices, self._targets[self._motorised], self._motor_forces,
-            self._motor_velocities, self.position_gain, self.velocity_gain,
-        )
+        self.sim.drive(self._motors, self._targets[self._motorised])
 
     def set_gripper(self, side: str, closure: float) -> None:
         """Open (0) or close (1) one hand; 1 squeezes a held peg with the full servo torque.
@@ -276,7 +276,8 @@ class Robot:
             raise InvalidInputError(
                 f"{label} has shape {array.shape}; expected {self.lower.shape}: one angle per joint, joint_names order"
             )
-        if not np.isfinite(array).all():
+        # a dot product is finite for finite angles (unless one is beyond 1e154: then check each)
+        if not math.isfinite(array @ array) and not np.isfinite(array).all():
             bad = [self.joint_names[i] for i in np.flatnonzero(~np.isfinite(array))]
             raise InvalidInputError(f"{label} has NaN or inf for {bad}; expected finite angles (rad)")
         return np.minimum(np.maximum(array, self.lower), self.upper)  # np.clip's, for finite angles, in fewer calls

@@ -17,6 +17,7 @@ import numpy as np
 from hoap_actions.envs.c_output import c_output_silenced
 from hoap_actions.envs.camera import Camera, CameraImage
 from hoap_actions.envs.display import check_display
+from hoap_actions.envs.motors import JointInfo, MotorGroup
 from hoap_actions.envs.urdf_merge import merged_urdf_path
 from hoap_actions.errors import DisplayUnavailableError, EnvClosedError, InvalidInputError
 from hoap_actions.urdf import urdf_path
@@ -46,19 +47,6 @@ class _Client(BulletClient):
         if name != "disconnect":
             self.__dict__[name] = attribute
         return attribute
-
-
-@dataclass(frozen=True)
-class JointInfo:
-    """Static facts of one movable joint, read from the loaded model."""
-
-    index: int
-    name: str
-    link_name: str
-    lower: float
-    upper: float
-    max_force: float
-    max_velocity: float
 
 
 @dataclass(frozen=True)
@@ -381,33 +369,37 @@ class Sim:
 
     def set_joint_targets(self, name: str, indices: list[int], positions: np.ndarray, forces: np.ndarray,
                           max_velocities: np.ndarray, position_gain: float = 0.3, velocity_gain: float = 1.0) -> None:
-        """Position control with realistic torque limits (N m) and joint speed limits (rad/s).
+        """Position control with realistic torque limits (N m) and joint speed limits (rad/s); a robot
+        driving the same joints at every tick makes a :class:`MotorGroup` once and calls :meth:`drive`."""
+        self.drive(MotorGroup.of(name, indices, forces, max_velocities, position_gain, velocity_gain), positions)
 
-        URDF velocity limits are ignored by PyBullet unless passed here as ``maxVelocity``. PyBullet
+    def drive(self, group: MotorGroup, positions: np.ndarray) -> None:
+        """Send position targets (one per joint of ``group``, rad) to its motors.
+
+        URDF velocity limits are ignored by PyBullet unless passed as ``maxVelocity``. PyBullet
         applies it as a cap on the motor's corrective velocity, not a hard bound on the joint: after a
         1 rad target step the right shoulder (limit 5 rad/s) peaked at 11 rad/s. The controllers never
         ask for such steps (joint_delta moves targets at most 1.5 rad/s; the IK plans within 5 rad/s).
         """
-        body = self.body_id(name)
+        body = self.body_id(group.name)
+        positions = np.asarray(positions, dtype=float).tolist()
+        if len(positions) != len(group.indices):
+            raise InvalidInputError(f"{len(positions)} targets for a group of {len(group.indices)} joints; "
+                                    f"expected one per joint")
         # PyBullet's bulk call takes no maxVelocity but keeps the one last set, so the per-joint call
         # is only made for joints whose speed limit changed
-        indices = [int(j) for j in indices]
-        positions = np.asarray(positions, dtype=float).tolist()
-        forces = np.asarray(forces, dtype=float).tolist()
-        max_velocities = np.asarray(max_velocities, dtype=float).tolist()
         sent = self._sent_max_velocity.setdefault(body, {})
-        if list(map(sent.get, indices)) != max_velocities:  # one comparison where, tick after tick, none changed
-            for j, q, f, v in zip(indices, positions, forces, max_velocities):
+        if list(map(sent.get, group.indices)) != group.max_velocities:  # one comparison where none changed
+            for j, q, f, v in zip(group.indices, positions, group.forces, group.max_velocities):
                 if sent.get(j) != v:
                     self._p.setJointMotorControl2(
                         body, j, pybullet.POSITION_CONTROL, targetPosition=q, force=f, maxVelocity=v,
-                        positionGain=position_gain, velocityGain=velocity_gain,
+                        positionGain=group.position_gains[0], velocityGain=group.velocity_gains[0],
                     )
                     sent[j] = v
-        n = len(indices)
         self._p.setJointMotorControlArray(
-            body, indices, pybullet.POSITION_CONTROL, targetPositions=positions, forces=forces,
-            positionGains=[position_gain] * n, velocityGains=[velocity_gain] * n,
+            body, group.indices, pybullet.POSITION_CONTROL, targetPositions=positions, forces=group.forces,
+            positionGains=group.position_gains, velocityGains=group.velocity_gains,
         )
 
     def set_joint_velocity_limits(self, name: str, indices: list[int], limits: np.ndarray) -> None:

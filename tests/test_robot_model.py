@@ -236,6 +236,14 @@ def test_set_targets_rejects_bad_input_and_clips_to_the_ranges(robot):
     with pytest.raises(InvalidInputError, match="r_knee"):
         robot.set_targets(q)
     q = robot.home_posture.copy()
+    q[robot.joint_index("l_wrist_yaw")] = -np.inf
+    with pytest.raises(InvalidInputError, match="l_wrist_yaw"):
+        robot.set_targets(q)
+    q = robot.home_posture.copy()
+    q[robot.joint_index("r_shoulder_yaw")] = 1e200  # finite, if absurd: clipped like any angle beyond the range
+    robot.set_targets(q)
+    assert robot.targets[robot.joint_index("r_shoulder_yaw")] == robot.upper[robot.joint_index("r_shoulder_yaw")]
+    q = robot.home_posture.copy()
     q[robot.joint_index("r_elbow")] = 3.0
     robot.set_targets(q)
     assert robot.targets[robot.joint_index("r_elbow")] == pytest.approx(np.radians(1.0))
