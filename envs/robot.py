@@ -262,6 +262,8 @@ class Robot:
 
     def has_fallen(self) -> bool:
         """True once the pelvis is lower than :data:`FALL_HEIGHT` above the floor or tilted past :data:`FALL_TILT`."""
+        if self.fixed_legs:  # the pelvis is welded where reset put it, standing
+            return False
         position, quat = self.base_pose()
         return bool(position[2] - self.floor_z < FALL_HEIGHT or up_z(quat) < np.cos(FALL_TILT))
 

@@ -103,6 +103,7 @@ class Scene:
             raise InvalidInputError(f"n_pegs={n_pegs!r}; accepted: an integer from 1 to {N_HOLES} (one hole each)")
         self.sim = sim
         self.n_pegs = int(n_pegs)
+        self._board: tuple[int, np.ndarray, float, np.ndarray] | None = None  # placements, centre, yaw, holes
         table_centre_x = world.TABLE_NEAR_EDGE_X + world.TABLE_SIZE[0] / 2
         sim.load_urdf("floor", "floor.urdf", (0.0, 0.0, world.FLOOR_Z), fixed_base=True)
         sim.load_urdf("table", "table.urdf", (table_centre_x, 0.0, 0.0), fixed_base=True)
@@ -209,13 +210,22 @@ class Scene:
 
     def board_pose(self) -> tuple[np.ndarray, float]:
         """Board centre ``(2,)`` in the table plane (m) and yaw (rad), read from the simulator."""
-        pos, quat = self.sim.base_pose("hole_board")
-        return pos[:2], 2.0 * math.atan2(quat[2], quat[3])
+        _, centre, yaw, _ = self._board_state()
+        return centre.copy(), yaw
 
     def hole_positions(self) -> np.ndarray:
         """World centres ``(N_HOLES, 3)`` (m) of the hole openings, on the board's top surface."""
-        xy = _holes_xy(*self.board_pose())
-        return np.column_stack([xy, np.full(N_HOLES, self.board_surface_z)])
+        return self._board_state()[3].copy()
+
+    def _board_state(self) -> tuple[int, np.ndarray, float, np.ndarray]:
+        """The board's pose and holes, read again only after something was placed: the board has a fixed
+        base, so stepping never moves it (read twice a step before, by the observation and the success test)."""
+        if self._board is None or self._board[0] != self.sim.placements:
+            pos, quat = self.sim.base_pose("hole_board")
+            centre, yaw = pos[:2], 2.0 * math.atan2(quat[2], quat[3])
+            holes = np.column_stack([_holes_xy(centre, yaw), np.full(N_HOLES, self.board_surface_z)])
+            self._board = (self.sim.placements, centre, yaw, holes)
+        return self._board
 
     def peg_pose(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Centre (3,) and quaternion (x, y, z, w) of peg ``i``; its axis is the quaternion's z axis."""
@@ -237,7 +247,7 @@ class Scene:
         bottom = pos - 0.5 * PEG_LENGTH * axis
         if bottom[2] > self.board_surface_z - min_depth:
             return False
-        centre, yaw = self.board_pose()
+        _, centre, yaw, _ = self._board_state()
         local = _rotation(yaw).T @ (bottom[:2] - centre) - HOLE_LOCAL_XY[j]
         return bool(np.all(np.abs(local) <= HOLE_SIZE / 2))
 

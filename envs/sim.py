@@ -123,6 +123,9 @@ class Sim:
         self._recipe: list[tuple[str, tuple, dict]] = []
         self._sent_max_velocity: dict[int, dict[int, float]] = {}  # per body and joint, the motor's speed cap
         self._sleepers: set[int] = set()  # bodies the engine may put to sleep (let_sleep)
+        # calls that may have moved a body other than by stepping (teleports, rebuilds, restores): what a
+        # cached pose of a fixed-base body is checked against
+        self.placements = 0
         self.cameras: dict[str, Camera] = {}
         self._configure_world()
         p = self._client
@@ -151,6 +154,7 @@ class Sim:
         PHMM episode from step 193 on). PyBullet is deterministic from a fresh world; rebuilding takes
         about 12 ms. Constraints made with :meth:`attach` are not made again."""
         recipe, self._recipe = self._recipe, []
+        self.placements += 1
         try:
             self._p.resetSimulation()
             self._bodies.clear()
@@ -319,6 +323,7 @@ class Sim:
         """Teleport a body's base (quaternion x, y, z, w) and zero its velocity; a sleeping body wakes
         (:meth:`let_sleep`), or it would hang where it was put."""
         body = self.body_id(name)
+        self.placements += 1
         self._p.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, orientation)))
         self._p.resetBaseVelocity(body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
         if body in self._sleepers:
@@ -557,6 +562,7 @@ class Sim:
         apart and running collision detection drops all pairs; the second restore then starts from
         the same empty cache every time.
         """
+        self.placements += 1
         self._p.restoreState(stateId=state_id)
         self._sent_max_velocity.clear()
         for k, body in enumerate(self._bodies.values()):

@@ -356,3 +356,32 @@ def test_a_peg_asleep_on_the_table_drops_where_it_is_put_and_wakes_when_touched(
     scene.sim.set_base_pose(scene.peg_names[2], (resting[0] + 2 * PEG_RADIUS - 0.003, resting[1], resting[2]))
     scene.sim.step(seconds(scene, 0.5))
     assert np.linalg.norm(scene.peg_pose(1)[0] - resting) > 1e-3
+
+
+def _holes_from_the_sim(scene: Scene) -> np.ndarray:
+    """The hole openings computed from a fresh read of the board's pose (no cache)."""
+    pos, (_, _, z, w) = scene.sim.base_pose("hole_board")
+    yaw = 2.0 * math.atan2(z, w)
+    xy = pos[:2] + HOLE_LOCAL_XY @ np.array([[math.cos(yaw), math.sin(yaw)], [-math.sin(yaw), math.cos(yaw)]])
+    return np.column_stack([xy, np.full(N_HOLES, BOARD_SIZE[2])])
+
+
+def test_holes_follow_the_board_however_it_is_moved(scene):
+    """The board's pose is read once per placement, not per step: every way of moving it is seen."""
+    first = scene.hole_positions()
+    np.testing.assert_allclose(first, _holes_from_the_sim(scene), atol=1e-12)
+    saved = scene.sim.save_state()
+    scene.sim.step(10)  # stepping leaves a fixed-base board where it is
+    np.testing.assert_array_equal(scene.hole_positions(), first)
+    scene.apply(scene.sample_layout(np.random.default_rng(3)))
+    moved = scene.hole_positions()
+    assert np.abs(moved - first).max() > 0.01
+    np.testing.assert_allclose(moved, _holes_from_the_sim(scene), atol=1e-12)
+    scene.sim.set_base_pose("hole_board", (0.25, 0.05, BOARD_SIZE[2] / 2), (0.0, 0.0, math.sin(0.2), math.cos(0.2)))
+    centre, yaw = scene.board_pose()
+    np.testing.assert_allclose([*centre, yaw], [0.25, 0.05, 0.4], atol=1e-9)
+    np.testing.assert_allclose(scene.hole_positions(), _holes_from_the_sim(scene), atol=1e-12)
+    scene.sim.restore_state(saved)
+    np.testing.assert_array_equal(scene.hole_positions(), first)
+    scene.hole_positions()[:] = 0.0  # a caller's copy: the next read is unchanged
+    np.testing.assert_array_equal(scene.hole_positions(), first)
