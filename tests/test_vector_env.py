@@ -34,13 +34,14 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
-@pytest.mark.parametrize("num_envs", [2, 3])
-def test_steps_as_gymnasiums_sync_vector_env(num_envs):
-    """Every observation, reward, flag and info bit for bit as SyncVectorEnv's, autoresets included."""
+@pytest.mark.parametrize("num_envs, spin_s", [(2, None), (2, 0.0), (3, 0.002)])
+def test_steps_as_gymnasiums_sync_vector_env(num_envs, spin_s):
+    """Every observation, reward, flag and info bit for bit as SyncVectorEnv's, autoresets included,
+    whether the two sides busy-wait for each other or sleep."""
     kwargs = {"control_mode": "ee_delta", "max_episode_steps": EPISODE_STEPS}
     actions = np.random.default_rng(3).uniform(-1, 1, (3 * EPISODE_STEPS, num_envs, 4)).astype(np.float32)
     sync = _run(gymnasium.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="sync", **kwargs), 11, actions)
-    hybrid = _run(make_hybrid(ENV_ID, num_envs, **kwargs), 11, actions)
+    hybrid = _run(make_hybrid(ENV_ID, num_envs, vector_kwargs={"spin_s": spin_s}, **kwargs), 11, actions)
     assert any(step[3].any() for step in sync[1:])  # the time limit ended episodes on the way
     _same(hybrid, sync)
 
@@ -79,3 +80,30 @@ def test_bad_actions_are_refused_before_any_sub_env_steps():
     obs, reward, *_ = envs.step(good)  # still usable
     assert reward.shape == (2,)
     envs.close()
+
+
+def test_a_sub_envs_error_reaches_the_caller_and_the_env_goes_on():
+    envs = make_hybrid(ENV_ID, 2, control_mode="ee_delta")
+    envs.reset(seed=2)
+    with pytest.raises(AttributeError, match="no_such_attribute"):
+        envs.get_attr("no_such_attribute")
+    obs, reward, *_ = envs.step(np.zeros((2, 4), dtype=np.float32))  # both sides still in step
+    assert reward.shape == (2,) and obs["observation"].shape[0] == 2
+    envs.close()
+
+
+def test_a_dead_worker_is_reported_not_waited_for():
+    envs = make_hybrid(ENV_ID, 2)
+    envs.reset(seed=4)
+    worker = envs.remote._links[0].process
+    worker.kill()
+    worker.join()
+    with pytest.raises(RuntimeError, match="worker process ended"):
+        envs.step(np.zeros(envs.action_space.shape, dtype=np.float32))
+    envs.close()
+
+
+@pytest.mark.parametrize("spin_s", [-0.001, 1.0, "fast", float("nan")])
+def test_a_bad_busy_wait_is_refused(spin_s):
+    with pytest.raises(InvalidInputError, match="spin_s"):
+        make_hybrid(ENV_ID, 2, vector_kwargs={"spin_s": spin_s})
