@@ -93,7 +93,7 @@ class HybridVectorEnv(VectorEnv):
         if actions.shape != self.action_space.shape or not np.isfinite(actions).all():
             raise InvalidInputError(f"actions must be {self.action_space.shape} finite numbers, one row per "
                                     f"sub-env; got shape {actions.shape}")  # refused before any sub-env steps
-        self.remote.send("step", [(row,) for row in actions[1:]])
+        self.remote.step(actions[1:].astype(self.single_action_space.dtype, copy=False))
         try:
             if self._local_done:
                 obs, info = self.local.reset()

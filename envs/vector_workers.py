@@ -27,7 +27,7 @@ from hoap_actions.errors import InvalidInputError
 __all__ = ["SpinningWorkers"]
 
 BUFFER_BYTES = 16 << 20  # per worker and direction; shared memory is only paid for where written
-_HEADER = 32  # int64: asked, answered, command length, answer length
+_HEADER = 32  # int64: asked, answered, command length (negative: a raw action's bytes), answer length
 _ALIVE_CHECK_S = 0.1
 
 
@@ -56,6 +56,12 @@ class SpinningWorkers:
         """Ask every worker ``command`` with its own argument tuple; :meth:`gather` collects the answers."""
         for link, args in zip(self._links, arguments, strict=True):
             link.ask((command, args))
+
+    def step(self, actions: np.ndarray) -> None:
+        """Ask worker ``i`` to step with ``actions[i]``, sent as raw bytes in the env's action dtype (a step's
+        one message that is not pickled); :meth:`gather` collects the answers."""
+        for link, action in zip(self._links, actions, strict=True):
+            link.ask_step(action)
 
     def gather(self) -> list[Any]:
         """Each worker's answer to the last :meth:`send`, in order; a worker's error is raised here, after
@@ -95,6 +101,14 @@ class _Link:
 
     def ask(self, message: tuple) -> None:
         _write(self.memory, _HEADER, 2, self.header, message)
+        self.asked += 1
+        self.header[0] = self.asked
+        self.to_worker.release()
+
+    def ask_step(self, action: np.ndarray) -> None:
+        raw = np.ascontiguousarray(action).tobytes()
+        self.memory.buf[_HEADER: _HEADER + len(raw)] = raw
+        self.header[2] = -len(raw)
         self.asked += 1
         self.header[0] = self.asked
         self.to_worker.release()
@@ -160,6 +174,7 @@ def _serve(env_fn: CloudpickleWrapper, name: str, to_worker: Any, to_caller: Any
         reply(_Failure(error))
         return
     reply(None)
+    action_space = env.action_space
     done = False
     while True:
         deadline = time.perf_counter() + spin_s
@@ -167,7 +182,12 @@ def _serve(env_fn: CloudpickleWrapper, name: str, to_worker: Any, to_caller: Any
             pass
         to_worker.acquire()
         answered += 1
-        command, args = pickle.loads(memory.buf[_HEADER: _HEADER + int(header[2])])
+        length = int(header[2])
+        if length < 0:
+            action = np.frombuffer(memory.buf[_HEADER: _HEADER - length], dtype=action_space.dtype)
+            command, args = "step", (action.reshape(action_space.shape).copy(),)
+        else:
+            command, args = pickle.loads(memory.buf[_HEADER: _HEADER + length])
         if command == "close":
             env.close()
             reply(None)
