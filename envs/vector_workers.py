@@ -184,8 +184,9 @@ def _serve(env_fn: CloudpickleWrapper, name: str, to_worker: Any, to_caller: Any
         answered += 1
         length = int(header[2])
         if length < 0:
-            action = np.frombuffer(memory.buf[_HEADER: _HEADER - length], dtype=action_space.dtype)
-            command, args = "step", (action.reshape(action_space.shape).copy(),)
+            raw = np.frombuffer(memory.buf[_HEADER: _HEADER - length], dtype=action_space.dtype)
+            command, args = "step", (raw.reshape(action_space.shape).copy(),)
+            del raw  # a view into the memory, which cannot close while one is held
         else:
             command, args = pickle.loads(memory.buf[_HEADER: _HEADER + length])
         if command == "close":

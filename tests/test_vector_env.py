@@ -89,7 +89,9 @@ def test_a_sub_envs_error_reaches_the_caller_and_the_env_goes_on():
         envs.get_attr("no_such_attribute")
     obs, reward, *_ = envs.step(np.zeros((2, 4), dtype=np.float32))  # both sides still in step
     assert reward.shape == (2,) and obs["observation"].shape[0] == 2
+    worker = envs.remote._links[0].process
     envs.close()
+    assert worker.exitcode == 0  # the worker let go of its shared memory and ended cleanly
 
 
 def test_a_dead_worker_is_reported_not_waited_for():
