@@ -202,15 +202,17 @@ def _track(args: argparse.Namespace) -> int:
         tracking_video_frames,
     )
     from hoap_actions.vision.body_model import BodyModel
+    from hoap_actions.vision.depth_sensor import DepthSensor
 
-    if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise):
+    if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise
+                              or args.depth):
         raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
-                                "--edges-only and --noise")
+                                "--edges-only, --noise and --depth")
     if args.grid_model and (args.models or args.posture or args.from_markers or args.side_camera or args.clutter
-                            or args.noise):
+                            or args.noise or args.depth):
         raise InvalidInputError("--grid-model trains its own approach model on the recording's 3 x 3 grid and tracks "
                                 "its one camera; leave out --models, --posture, --from-markers, --side-camera, "
-                                "--clutter and --noise")
+                                "--clutter, --noise and --depth")
     args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "offsets")
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
@@ -227,12 +229,14 @@ def _track(args: argparse.Namespace) -> int:
             result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
                                    keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
                                    silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera),
-                                   pose_proposal=args.pose_proposal, posture=posture)
+                                   pose_proposal=args.pose_proposal, posture=posture,
+                                   depth_sensor=DepthSensor() if args.depth else None)
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
                         "models": str(args.models or "shipped default models"), "pose_proposal": args.pose_proposal,
-                        "posture": None if args.posture is None else str(args.posture), **summary}
+                        "posture": None if args.posture is None else str(args.posture), "depth": args.depth,
+                        **summary}
             claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
         if "video" in claimed:
             body = BodyModel(models.marker_names_, torso_base=result.torso_base)
@@ -458,6 +462,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--from-markers", action="store_true",
                        help="track from the recording's markers and block instead of the camera's images "
                             "(recognition from motion capture)")
+    track.add_argument("--depth", action="store_true",
+                       help="an RGB-D camera: score each view's depth image too, as a structured-light sensor reads "
+                            "it (noise and steps growing with distance, holes at edges); default: colour images only")
     track.add_argument("--pose-proposal", choices=["offsets", "hand"],
                        help="how particles pose the arm: offsets of every marker from the PHMM's mean, or the hand "
                             "shifted and the shoulder and elbow generated from it (with --posture, by that posture "

@@ -53,25 +53,29 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--noise", type=float, default=0.0, help="Gaussian image noise (share of full intensity)")
     parser.add_argument("--side-camera", action="store_true", help="a second view from the demonstrator's right (eq. "
                                                                    "9)")
+    parser.add_argument("--depth", action="store_true",
+                        help="an RGB-D camera: each view's depth image as a structured-light sensor reads it is scored "
+                             "too (vision.depth_sensor.DepthSensor); the edges-only variant stays colour alone")
     parser.add_argument("--from-markers", action="store_true",
                         help="track from the recorded markers and block instead of images (no speed part)")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet "
                              "machine")
     args = parser.parse_args(argv)
-    if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only):
-        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera and "
-                     "--speed-only")
+    if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only or args.depth):
+        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera, --depth "
+                     "and --speed-only")
     return args
 
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
-                      side_camera=False, from_markers=False) -> dict:
+                      side_camera=False, from_markers=False, depth=False) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
     from hoap_actions.primitives.discovery.estimator import UNKNOWN
     from hoap_actions.tracking import SCORED_MARKERS, side_cameras, track_episode, track_markers_episode
+    from hoap_actions.vision.depth_sensor import DepthSensor
 
     runs = []
     for index in episodes:
@@ -79,7 +83,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
             result = track_markers_episode(models, demos, index, particles=particles, seed=0)
         else:
             result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
-                                   image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera))
+                                   image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera),
+                                   depth_sensor=DepthSensor() if depth else None)
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -160,12 +165,14 @@ def main(argv: list[str] | None = None) -> dict:
         for cues, store, silhouette in variants:
             print(f"paper seed {seed}, {cues}:", flush=True)
             store[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise,
-                                            silhouette, args.side_camera, args.from_markers)
+                                            silhouette, args.side_camera, args.from_markers,
+                                            args.depth and silhouette)
     summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
-                     "from_markers": args.from_markers, "models": "shipped default models", "filter_seed": 0},
+                     "from_markers": args.from_markers, "depth": args.depth, "models": "shipped default models",
+                     "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
         "summary": summaries[variants[0][0]], "per_recording": per_recording,
     }

@@ -359,3 +359,40 @@ def test_mean_poses_refuses_states_off_the_chain_and_misshapen_effects():
     for states, effects in (([k - 0.5], phi[:1]), ([-0.1], phi[:1]), ([0.0, 1.0], phi[:1])):
         with pytest.raises(InvalidInputError):
             mean_poses(model, np.array(states), effects, 6)
+
+
+def _depth_image(body, pose, camera) -> np.ndarray:
+    """A depth image of one body: each pixel its limbs cover takes the near-surface depth of the nearest limb
+    axis point, NaN elsewhere: what a depth camera sees of the body alone."""
+    v, u = np.mgrid[0:camera.height, 0:camera.width]
+    pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(float)
+    bodies = body.project(pose[None], camera)
+    axis = body.interior(bodies)[0]
+    surface = body.surface_depths(pose[None], camera)[0]
+    covered = body.covers(bodies, pixels, body.limbs)[0]
+    nearest = np.argmin(np.linalg.norm(pixels[covered, None] - axis[None], axis=2), axis=1)
+    depth = np.full(len(pixels), np.nan)
+    depth[covered] = surface[nearest]
+    return depth.reshape(camera.height, camera.width)
+
+
+def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
+    """A pose moved 5 cm along the camera's ray projects almost where the true one does, so the edges barely
+    tell them apart; the depth image does. The misfit of the true pose is near 0, and the term adds to the
+    log-likelihood with its sigma."""
+    _, _, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=3, random_state=0)
+    t = len(movement) * 3 // 4
+    true = movement[t]
+    ray = true[2] - np.asarray(CAMERA.eye)
+    along_ray = true + 0.05 * ray / np.linalg.norm(ray)
+    poses = np.stack([true, along_ray, true + [0.0, 0.05, 0.0]])
+    D = _depth_image(body, true, CAMERA)
+    misfit = tracker._depth_misfit(poses, body.project(poses, CAMERA), D, CAMERA)
+    assert misfit[0] < 1e-4 and misfit[1] > 1e-3 and misfit[2] > misfit[0]
+    G = next(iter(images(body, movement[t:t + 1])))
+    np.testing.assert_allclose(tracker._log_likelihood(poses, [G]) - tracker._log_likelihood(poses, [G], None, [D]),
+                               misfit / (2 * tracker.depth_sigma_m**2))
+    with pytest.raises(InvalidInputError, match="depths > 0"):
+        tracker.step(G, depth=np.zeros((CAMERA.height, CAMERA.width)))

@@ -87,6 +87,8 @@ OBJECT_STILL_M = 0.003
 OBJECT_END_SPREAD_M = 0.045
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
+DEPTH_SIGMA_M = 0.02  # sigma of the depth term (m of truncated depth misfit; validation recording)
+DEPTH_TRUNCATION_M = 0.05  # a depth residual counts at most this much: an occluded or mismeasured point is not a pose
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
 FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
 OBJECT_MOTION_FRAMES = 5  # frames over which the object's seen displacement is measured
@@ -147,6 +149,8 @@ class ActionTracker:
         eq. (8)'s sigma; the end's Brownian step (m per frame).
     silhouette_sigma
         the silhouette term's sigma, used when :meth:`step` is given foreground masks.
+    depth_sigma_m
+        the depth term's sigma (m), used when :meth:`step` is given depth images.
     object_still_m, object_moving_m
         scales of the object's seen displacement for classes that leave it at
         rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
@@ -171,13 +175,15 @@ class ActionTracker:
                  n_particles: int = 400, observation_sigma: float = OBSERVATION_SIGMA,
                  end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
-                 pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None) -> None:
+                 pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
+                 depth_sigma_m: float = DEPTH_SIGMA_M) -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
             raise InvalidInputError(f"n_particles must be an int in 1..{MAX_PARTICLES}; got {n_particles!r}")
-        if not (observation_sigma > 0 and silhouette_sigma > 0 and end_diffusion_m >= 0):
-            raise InvalidInputError("observation_sigma and silhouette_sigma must be > 0 and end_diffusion_m >= 0")
+        if not (observation_sigma > 0 and silhouette_sigma > 0 and depth_sigma_m > 0 and end_diffusion_m >= 0):
+            raise InvalidInputError("observation_sigma, silhouette_sigma and depth_sigma_m must be > 0 and "
+                                    "end_diffusion_m >= 0")
         if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):
             raise InvalidInputError(f"object_still_m must be > 0 or None (off) and object_moving_m > 0; got "
                                     f"{object_still_m!r}, {object_moving_m!r}")
@@ -195,6 +201,7 @@ class ActionTracker:
         self.observation_sigma = float(observation_sigma)
         self.end_diffusion_m = float(end_diffusion_m)
         self.silhouette_sigma = float(silhouette_sigma)
+        self.depth_sigma_m = float(depth_sigma_m)
         self.object_still_m = None if object_still_m is None else float(object_still_m)
         self.object_moving_m = float(object_moving_m)
         self._rng = np.random.default_rng(random_state)
@@ -264,16 +271,19 @@ class ActionTracker:
     # ----------------------------------------------------------------------------- the filter
     def step(self, edges: np.ndarray | Sequence[np.ndarray],
              foreground: np.ndarray | Sequence[np.ndarray] | None = None,
-             object_position: np.ndarray | None = None) -> TrackedFrame:
+             object_position: np.ndarray | None = None,
+             depth: np.ndarray | Sequence[np.ndarray] | None = None) -> TrackedFrame:
         """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`) and, when given,
-        the foreground mask(s) (:class:`~hoap_actions.vision.silhouette.BackgroundSubtractor`), resample.
+        the foreground mask(s) (:class:`~hoap_actions.vision.silhouette.BackgroundSubtractor`) and depth
+        image(s) (m along each camera's view axis, NaN where not measured), resample.
         ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen)."""
         images = self._per_camera(edges, "edge image")
         masks = None if foreground is None else self._per_camera(foreground, "foreground mask")
+        depths = None if depth is None else self._per_camera(depth, "depth image")
         self._see_object(object_position)
         self._propagate()
         markers = self.markers()
-        return self._weigh(markers, self._log_likelihood(markers, images, masks))
+        return self._weigh(markers, self._log_likelihood(markers, images, masks, depths))
 
     def step_markers(self, observed: np.ndarray, sigma_m: float = MARKER_SIGMA_M,
                      object_position: np.ndarray | None = None) -> TrackedFrame:
@@ -343,7 +353,8 @@ class ActionTracker:
         return frame
 
     def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str) -> list[np.ndarray]:
-        """One checked image per camera: the camera's size, values in [0, 1]."""
+        """One checked image per camera: the camera's size, values in [0, 1] (a depth image: metres > 0, NaN
+        where not measured)."""
         images = [images] if isinstance(images, np.ndarray) else list(images)
         if len(images) != len(self.cameras):
             raise InvalidInputError(f"give one {what} per camera ({len(self.cameras)}); got {len(images)}")
@@ -351,6 +362,10 @@ class ActionTracker:
             if np.shape(image) != (camera.height, camera.width):
                 raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
                                         f"got {np.shape(image)}")
+            if what == "depth image":
+                if np.any(np.asarray(image) <= 0.0) or np.any(np.isinf(image)):
+                    raise InvalidInputError(f"a {what} must hold depths > 0 (m) or NaN where none was measured")
+                continue
             low, high = np.min(image), np.max(image)  # a NaN makes both NaN: the comparisons then fail
             if not (low >= 0.0 and high <= 1.0):
                 raise InvalidInputError(f"a {what} must hold finite values in [0, 1]")
@@ -445,10 +460,11 @@ class ActionTracker:
         return out
 
     def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray],
-                        masks: list[np.ndarray] | None = None) -> np.ndarray:
+                        masks: list[np.ndarray] | None = None, depths: list[np.ndarray] | None = None) -> np.ndarray:
         """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)`` over the contour points
         not hidden by the table; off-image points count as 1. With foreground masks F, each view adds
-        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)`` (:meth:`_silhouette_misfit`)."""
+        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)`` (:meth:`_silhouette_misfit`); with depth images,
+        ``-misfit / (2 sigma_d^2)`` (:meth:`_depth_misfit`)."""
         total = np.zeros(self.n_particles)
         for k, (image, camera) in enumerate(zip(images, self.cameras)):
             bodies = self.body.project(markers, camera)
@@ -456,7 +472,25 @@ class ActionTracker:
                 / (2.0 * self.observation_sigma**2)
             if masks is not None:
                 total -= self._silhouette_misfit(markers, bodies, masks[k], camera) / (2.0 * self.silhouette_sigma**2)
+            if depths is not None:
+                total -= self._depth_misfit(markers, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
         return total
+
+    def _depth_misfit(self, markers: np.ndarray, bodies: ProjectedBodies, depth: np.ndarray,
+                      camera: Projector) -> np.ndarray:
+        """Per particle (m^2): the mean squared difference, each truncated at :data:`DEPTH_TRUNCATION_M`,
+        between the measured depth at its limbs' axis points and its limbs' near surface there; points hidden
+        by the table, off the image or where the sensor measured nothing are left out (none left: 0)."""
+        pixels = self.body.interior(bodies)
+        hidden = ~np.isfinite(pixels).all(axis=-1)
+        u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
+        v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)
+        inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
+        measured = np.full(u.shape, np.nan)
+        measured[inside] = depth[v[inside], u[inside]]
+        residual = np.minimum(np.square(measured - self.body.surface_depths(markers, camera)), DEPTH_TRUNCATION_M**2)
+        seen = np.isfinite(residual)
+        return np.where(seen, residual, 0.0).sum(axis=1) / np.maximum(seen.sum(axis=1), 1)
 
     @staticmethod
     def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector) -> np.ndarray:

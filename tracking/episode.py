@@ -29,6 +29,7 @@ from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, 
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
+from hoap_actions.vision.depth_sensor import DepthSensor
 from hoap_actions.vision.edges import edge_image
 from hoap_actions.vision.objects import ObjectLocator
 from hoap_actions.vision.silhouette import BackgroundSubtractor
@@ -117,7 +118,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                   more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
                   silhouette: bool = True, object_cue: bool = True,
                   progress: Callable[[int, int], None] | None = None, pose_proposal: str = "offsets",
-                  posture: PostureModel | None = None) -> TrackResult:
+                  posture: PostureModel | None = None, depth_sensor: DepthSensor | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
@@ -125,11 +126,13 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     noise of that standard deviation (share of the full intensity) to every image, drawn from ``seed``.
     ``silhouette`` adds the foreground cue: each image against a picture of the empty table from the same
     camera (taken once, before the episode, with its own noise); False scores edges alone (eq. 8).
-    ``pose_proposal`` and ``posture``: how particles pose the arm (:class:`ActionTracker`)."""
+    ``pose_proposal`` and ``posture``: how particles pose the arm (:class:`ActionTracker`). ``depth_sensor``
+    adds each view's depth image as that sensor reads it (an RGB-D camera; its errors drawn from ``seed``,
+    apart from the image noise's) to the evidence."""
     ep = _bridged_episode(models, demos, episode)
     views = (camera, *more_cameras)
     frames, kept, pictures = [], [], []
-    with _Renderer(demos, episode, views, clutter, image_noise, seed) as renderer:
+    with _Renderer(demos, episode, views, clutter, image_noise, seed, depth_sensor) as renderer:
         body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
                                 pose_proposal=pose_proposal, random_state=seed)
@@ -137,7 +140,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                             ObjectLocator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
             images = renderer.frame(ep, t)
-            frames.append(observe(images))
+            frames.append(observe(images, renderer.depths()))
             if keep_images:
                 kept.append(observe.edges[0])
                 pictures.append(images[0])
@@ -198,7 +201,7 @@ class _Renderer:
     manager: the scene's physics client is closed on exit)."""
 
     def __init__(self, demos: Demonstrations, episode: int, views: tuple[Camera, ...], clutter: bool,
-                 image_noise: float, seed: int) -> None:
+                 image_noise: float, seed: int, depth_sensor: DepthSensor | None = None) -> None:
         if not (np.isfinite(image_noise) and 0.0 <= image_noise <= 1.0):
             raise InvalidInputError(f"image_noise must be a standard deviation in [0, 1] (share of full intensity); "
                                     f"got {image_noise!r}")
@@ -207,6 +210,8 @@ class _Renderer:
                                     "rendered; record it again with this version: hoap-actions record")
         self.joint_names, self.views, self.image_noise = demos.joint_names, views, image_noise
         self.noise = np.random.default_rng([seed, episode])
+        self.depth_sensor, self.depth_noise = depth_sensor, np.random.default_rng([seed, episode, 1])
+        self._depths: list[np.ndarray] | None = None
         self.scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
         try:
             if clutter:
@@ -235,7 +240,14 @@ class _Renderer:
 
     def frame(self, ep, t: int) -> list[np.ndarray]:
         self.scene.pose(self.joint_names, ep.Q[t], ep.O[t])
-        return self._noisy([self.scene.render(view).rgb for view in self.views])
+        rendered = [self.scene.render(view) for view in self.views]
+        if self.depth_sensor is not None:
+            self._depths = [self.depth_sensor.measure(image.depth, self.depth_noise) for image in rendered]
+        return self._noisy([image.rgb for image in rendered])
+
+    def depths(self) -> list[np.ndarray] | None:
+        """The last frame's depth images as the sensor read them (None without a depth sensor)."""
+        return self._depths
 
 
 class _Observer:
@@ -249,12 +261,12 @@ class _Observer:
         self.spent = 0.0
         self.edges: list[np.ndarray] = []
 
-    def __call__(self, images: list[np.ndarray]) -> TrackedFrame:
+    def __call__(self, images: list[np.ndarray], depths: list[np.ndarray] | None = None) -> TrackedFrame:
         started = time.perf_counter()
         self.edges = [edge_image(image) for image in images]
         masks = None if self.subtractors is None else [subtract(image) for subtract, image
                                                        in zip(self.subtractors, images)]
-        frame = self.tracker.step(self.edges, masks, None if self.locate is None else self.locate(images[0]))
+        frame = self.tracker.step(self.edges, masks, None if self.locate is None else self.locate(images[0]), depths)
         self.spent += time.perf_counter() - started
         return frame
 

@@ -204,6 +204,19 @@ class BodyModel:
         z = z_a[:, limbs, None] + t[..., 0] * (z_b - z_a)[:, limbs, None]
         return self._hide(points.reshape(a.shape[0], -1, 2), z.reshape(a.shape[0], -1))
 
+    def surface_depths(self, markers: np.ndarray, camera: Projector) -> np.ndarray:
+        """``(N, L * K)`` m: how far along ``camera``'s view axis the limbs' near surface lies at the points of
+        :meth:`interior` (the axis's depth less the capsule's radius), for a depth image to be compared with."""
+        markers = np.asarray(markers, dtype=float)
+        limbs = self.limbs
+        starts = np.stack([self._point(self.capsules[k].start, markers) for k in limbs], axis=1)  # (N, L, 3)
+        ends = np.stack([self._point(self.capsules[k].end, markers) for k in limbs], axis=1)
+        t = np.linspace(0.0, 1.0, self.points_per_side)[None, None, :, None]
+        points = starts[:, :, None] + t * (ends - starts)[:, :, None]  # (N, L, K, 3)
+        view = camera.view_matrix()
+        depth = -(points @ view[2, :3] + view[2, 3])  # OpenGL: the camera looks down its -z
+        return (depth - self._radius[limbs][None, :, None]).reshape(markers.shape[0], -1)
+
     def covers(self, bodies: ProjectedBodies, pixels: np.ndarray, capsules: np.ndarray | None = None) -> np.ndarray:
         """``(N, P)``: whether each of ``pixels`` (P, 2) lies inside body ``n``'s silhouette (the union of
         its projected capsules, or of those indexed by ``capsules``: within the interpolated radius of the
