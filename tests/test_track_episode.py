@@ -64,6 +64,18 @@ def test_clutter_and_image_noise_are_part_of_the_seeded_episode(small):
         track_episode(models, small, 3, image_noise=-0.1)
 
 
+def test_a_depth_camera_is_part_of_the_seeded_episode_and_reaches_the_filter(small):
+    from hoap_actions.vision.depth_sensor import DepthSensor
+
+    models = load_default_models()
+    camera = dataclasses.replace(DEMONSTRATOR_CAMERA, width=160, height=120)
+    runs = [track_episode(models, small, 3, particles=50, seed=2, camera=camera,
+                          depth_sensor=DepthSensor()).summary() for _ in range(2)]
+    assert runs[0]["rms_m_all"] == runs[1]["rms_m_all"] and runs[0]["recognized"] == runs[1]["recognized"]
+    colour = track_episode(models, small, 3, particles=50, seed=2, camera=camera).summary()
+    assert colour["rms_m_all"] != runs[0]["rms_m_all"]  # the depth images reach the filter
+
+
 def test_refuses_what_it_cannot_track(small):
     models = load_default_models()
     bare = dataclasses.replace(small, joint_names=(), episodes=tuple(dataclasses.replace(e, Q=None) for e in small))
@@ -139,6 +151,8 @@ def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
     assert main(["track", "--demos", str(path), "--from-markers", "--video", str(tmp_path / "v.mp4")]) == 2
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert "--from-markers tracks without images" in error and not (tmp_path / "v.mp4").exists()
+    assert main(["track", "--demos", str(path), "--from-markers", "--depth"]) == 2
+    assert "--depth" in capsys.readouterr().err.strip().splitlines()[-1]
 
 
 def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):
