@@ -22,7 +22,7 @@ import gymnasium
 import numpy as np
 from gymnasium.vector.utils import CloudpickleWrapper
 
-from hoap_actions.errors import InvalidInputError
+from hoap_actions.errors import EnvClosedError, InvalidInputError
 
 __all__ = ["SpinningWorkers"]
 
@@ -119,8 +119,8 @@ class _Link:
             pass
         while not self.to_caller.acquire(timeout=_ALIVE_CHECK_S):
             if not self.process.is_alive():
-                raise RuntimeError(f"a vector env's worker process ended (exit code {self.process.exitcode}) "
-                                   f"before answering; the vector env cannot go on: close it and make another")
+                raise EnvClosedError(f"a vector env's worker process ended (exit code {self.process.exitcode}) "
+                                     f"before answering; the vector env cannot go on: close it and make another")
         return pickle.loads(self.memory.buf[_HEADER + BUFFER_BYTES: _HEADER + BUFFER_BYTES + int(self.header[3])])
 
     def answer(self) -> Any:

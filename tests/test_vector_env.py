@@ -8,7 +8,7 @@ import pytest
 
 import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.envs.vector import HybridVectorEnv, make_hybrid
-from hoap_actions.errors import InvalidInputError
+from hoap_actions.errors import EnvClosedError, InvalidInputError
 
 ENV_ID = "hoap_actions/Reach-v1"
 EPISODE_STEPS = 4  # short episodes, so that the run crosses autoresets
@@ -100,7 +100,7 @@ def test_a_dead_worker_is_reported_not_waited_for():
     worker = envs.remote._links[0].process
     worker.kill()
     worker.join()
-    with pytest.raises(RuntimeError, match="worker process ended"):
+    with pytest.raises(EnvClosedError, match="worker process ended"):
         envs.step(np.zeros(envs.action_space.shape, dtype=np.float32))
     envs.close()
 
