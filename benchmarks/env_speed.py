@@ -95,7 +95,10 @@ def compare_with_peers(runs: int, steps: int, sim_seconds_per_step: float, robot
                 out.append({"env_id": env_id, "robot": robot, "control_mode": control_mode, "peer": peer, "runs": runs,
                             "steps": steps, "sim_s_per_wall_s": ours_rate, "peer_sim_s_per_wall_s": peer_rate,
                             "steps_per_s": steps / statistics.median(ours),
-                            "peer_steps_per_s": steps / statistics.median(theirs), "ratio": ours_rate / peer_rate})
+                            "peer_steps_per_s": steps / statistics.median(theirs), "ratio": ours_rate / peer_rate,
+                            # each round's ratio (the two envs took turns): the spread of the median's
+                            "run_ratios": [sim_seconds_per_step * peer_wall / (peer_sim_s * our_wall)
+                                           for our_wall, peer_wall in zip(ours, theirs)]})
                 print(f"{env_id:28s} {robot:10s} {control_mode:11s} {ours_rate:6.2f} sim s / wall s against {peer} "
                       f"{peer_rate:6.2f}: {ours_rate / peer_rate:.2f}x")
     return out
