@@ -368,7 +368,7 @@ def _depth_image(body, pose, camera) -> np.ndarray:
     pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(float)
     bodies = body.project(pose[None], camera)
     axis = body.interior(bodies)[0]
-    surface = body.surface_depths(pose[None], camera)[0]
+    surface = body.surface_depths(bodies)[0]
     covered = body.covers(bodies, pixels, body.limbs)[0]
     nearest = np.argmin(np.linalg.norm(pixels[covered, None] - axis[None], axis=2), axis=1)
     depth = np.full(len(pixels), np.nan)
@@ -389,10 +389,27 @@ def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
     along_ray = true + 0.05 * ray / np.linalg.norm(ray)
     poses = np.stack([true, along_ray, true + [0.0, 0.05, 0.0]])
     D = _depth_image(body, true, CAMERA)
-    misfit = tracker._depth_misfit(poses, body.project(poses, CAMERA), D, CAMERA)
+    misfit = tracker._depth_misfit(body.project(poses, CAMERA), D, CAMERA)
     assert misfit[0] < 1e-4 and misfit[1] > 1e-3 and misfit[2] > misfit[0]
     G = next(iter(images(body, movement[t:t + 1])))
     np.testing.assert_allclose(tracker._log_likelihood(poses, [G]) - tracker._log_likelihood(poses, [G], None, [D]),
                                misfit / (2 * tracker.depth_sigma_m**2))
     with pytest.raises(InvalidInputError, match="depths > 0"):
         tracker.step(G, depth=np.zeros((CAMERA.height, CAMERA.width)))
+
+
+def test_surface_depths_are_the_limb_axes_distance_along_the_view_less_the_radius(models, reach):
+    """Cross-check against the camera's geometry written out: the axis points between each limb's two
+    markers, their distance from the eye along the unit view direction, less the capsule's radius."""
+    _, _, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    pose = movement[len(movement) // 2]
+    forward = np.subtract(CAMERA.target, CAMERA.eye)
+    forward /= np.linalg.norm(forward)
+    expected = []
+    for k in body.limbs:
+        capsule = body.capsules[k]
+        start, end = (pose[MARKERS.index(name)] for name in (capsule.start, capsule.end))
+        for t in np.linspace(0.0, 1.0, body.points_per_side):
+            expected.append((start + t * (end - start) - np.asarray(CAMERA.eye)) @ forward - capsule.radius)
+    np.testing.assert_allclose(body.surface_depths(body.project(pose[None], CAMERA))[0], expected, atol=1e-12)

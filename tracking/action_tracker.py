@@ -49,7 +49,7 @@ estimates before the arm has shown where it goes).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +99,16 @@ MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (ste
 # collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
 EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
+
+
+def _within_unit_range(image: np.ndarray) -> str | None:
+    low, high = np.min(image), np.max(image)  # a NaN makes both NaN: the comparisons then fail
+    return None if low >= 0.0 and high <= 1.0 else "finite values in [0, 1]"
+
+
+def _depths_or_holes(image: np.ndarray) -> str | None:
+    wrong = np.any(image <= 0.0) or np.any(np.isinf(image))
+    return "depths > 0 (m) or NaN where none was measured" if wrong else None
 
 
 def _visible_mean(values: np.ndarray) -> np.ndarray:
@@ -277,9 +287,9 @@ class ActionTracker:
         the foreground mask(s) (:class:`~hoap_actions.vision.silhouette.BackgroundSubtractor`) and depth
         image(s) (m along each camera's view axis, NaN where not measured), resample.
         ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen)."""
-        images = self._per_camera(edges, "edge image")
-        masks = None if foreground is None else self._per_camera(foreground, "foreground mask")
-        depths = None if depth is None else self._per_camera(depth, "depth image")
+        images = self._per_camera(edges, "edge image", _within_unit_range)
+        masks = None if foreground is None else self._per_camera(foreground, "foreground mask", _within_unit_range)
+        depths = None if depth is None else self._per_camera(depth, "depth image", _depths_or_holes)
         self._see_object(object_position)
         self._propagate()
         markers = self.markers()
@@ -352,9 +362,10 @@ class ActionTracker:
             self._resample(weights)
         return frame
 
-    def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str) -> list[np.ndarray]:
-        """One checked image per camera: the camera's size, values in [0, 1] (a depth image: metres > 0, NaN
-        where not measured)."""
+    def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str,
+                    problem: Callable[[np.ndarray], str | None]) -> list[np.ndarray]:
+        """One checked image per camera: the camera's size, and values that ``problem`` finds nothing wrong
+        with (it says what is accepted otherwise)."""
         images = [images] if isinstance(images, np.ndarray) else list(images)
         if len(images) != len(self.cameras):
             raise InvalidInputError(f"give one {what} per camera ({len(self.cameras)}); got {len(images)}")
@@ -362,13 +373,9 @@ class ActionTracker:
             if np.shape(image) != (camera.height, camera.width):
                 raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
                                         f"got {np.shape(image)}")
-            if what == "depth image":
-                if np.any(np.asarray(image) <= 0.0) or np.any(np.isinf(image)):
-                    raise InvalidInputError(f"a {what} must hold depths > 0 (m) or NaN where none was measured")
-                continue
-            low, high = np.min(image), np.max(image)  # a NaN makes both NaN: the comparisons then fail
-            if not (low >= 0.0 and high <= 1.0):
-                raise InvalidInputError(f"a {what} must hold finite values in [0, 1]")
+            wrong = problem(np.asarray(image))
+            if wrong:
+                raise InvalidInputError(f"a {what} must hold {wrong}")
         return images
 
     def _propagate(self) -> None:
@@ -473,34 +480,27 @@ class ActionTracker:
             if masks is not None:
                 total -= self._silhouette_misfit(markers, bodies, masks[k], camera) / (2.0 * self.silhouette_sigma**2)
             if depths is not None:
-                total -= self._depth_misfit(markers, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
+                total -= self._depth_misfit(bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
         return total
 
-    def _depth_misfit(self, markers: np.ndarray, bodies: ProjectedBodies, depth: np.ndarray,
-                      camera: Projector) -> np.ndarray:
+    def _depth_misfit(self, bodies: ProjectedBodies, depth: np.ndarray, camera: Projector) -> np.ndarray:
         """Per particle (m^2): the mean squared difference, each truncated at :data:`DEPTH_TRUNCATION_M`,
         between the measured depth at its limbs' axis points and its limbs' near surface there; points hidden
         by the table, off the image or where the sensor measured nothing are left out (none left: 0)."""
-        pixels = self.body.interior(bodies)
-        hidden = ~np.isfinite(pixels).all(axis=-1)
-        u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
-        v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)
-        inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
-        measured = np.full(u.shape, np.nan)
-        measured[inside] = depth[v[inside], u[inside]]
-        residual = np.minimum(np.square(measured - self.body.surface_depths(markers, camera)), DEPTH_TRUNCATION_M**2)
+        measured = self._sample(depth, self.body.interior(bodies), camera, outside=np.nan)
+        residual = np.minimum(np.square(measured - self.body.surface_depths(bodies)), DEPTH_TRUNCATION_M**2)
         seen = np.isfinite(residual)
         return np.where(seen, residual, 0.0).sum(axis=1) / np.maximum(seen.sum(axis=1), 1)
 
     @staticmethod
-    def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector) -> np.ndarray:
-        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): 0 off the image, NaN for NaN
+    def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector, outside: float = 0.0) -> np.ndarray:
+        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): ``outside`` off the image, NaN for NaN
         (hidden) pixels."""
         hidden = ~np.isfinite(pixels).all(axis=-1)
         u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
         v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)
         inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
-        values = np.zeros(u.shape)
+        values = np.full(u.shape, float(outside))
         values[inside] = image[v[inside], u[inside]]
         values[hidden] = np.nan
         return values

@@ -69,8 +69,9 @@ FROM_SHOULDER = {
 @dataclass(frozen=True)
 class ProjectedBodies:
     """``N`` bodies' capsules in one image: end points ``a``, ``b`` (N, C, 2) and radii ``rho_a``, ``rho_b``
-    (N, C) in pixels, and the end points' heights ``z_a``, ``z_b`` (N, C, m). Computed once per frame and
-    shared by every part of the likelihood."""
+    (N, C) in pixels, the end points' heights ``z_a``, ``z_b`` (N, C, m) and their depths along the
+    camera's view axis ``depth_a``, ``depth_b`` (N, C, m). Computed once per frame and shared by every
+    part of the likelihood."""
 
     a: np.ndarray
     b: np.ndarray
@@ -78,6 +79,8 @@ class ProjectedBodies:
     rho_b: np.ndarray
     z_a: np.ndarray
     z_b: np.ndarray
+    depth_a: np.ndarray
+    depth_b: np.ndarray
 
 
 class BodyModel:
@@ -133,16 +136,18 @@ class BodyModel:
         n = markers.shape[0]
         starts = np.stack([self._point(c.start, markers) for c in self.capsules], axis=1)  # (N, C, 3)
         ends = np.stack([self._point(c.end, markers) for c in self.capsules], axis=1)
-        side, project = self._camera(camera)
-        radius = self._radius[None, :, None]
+        view, project = self._camera(camera)
+        side, radius = view[0, :3], self._radius[None, :, None]
         points = np.concatenate([starts, ends, starts + radius * side, ends + radius * side], axis=1)
         pixels = project(points.reshape(-1, 3)).reshape(n, 4, len(self.capsules), 2)
         a, b = pixels[:, 0], pixels[:, 1]
+        depth_a, depth_b = (-(ends_ @ view[2, :3] + view[2, 3]) for ends_ in (starts, ends))  # OpenGL: looks down -z
         return ProjectedBodies(a, b, np.linalg.norm(pixels[:, 2] - a, axis=2), np.linalg.norm(pixels[:, 3] - b, axis=2),
-                               starts[..., 2], ends[..., 2])
+                               starts[..., 2], ends[..., 2], depth_a, depth_b)
 
     def _camera(self, camera: Projector) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
-        """``camera``'s right axis in the world (a radius across the view) and its projection, the matrices
+        """``camera``'s view matrix (its first row: the right axis in the world, a radius across the view;
+        its third: the view axis) and its projection, the matrices
         made once per camera (a tracker projects every particle in every frame): the same arithmetic as
         :meth:`Camera.project`. Projectors without ``projection_matrix`` project themselves."""
         try:
@@ -151,7 +156,7 @@ class BodyModel:
             pass
         view = camera.view_matrix()
         if not hasattr(camera, "projection_matrix"):
-            return view[0, :3], camera.project
+            return view, camera.project
         matrix = (camera.projection_matrix() @ view).T
         width, height = camera.width, camera.height
 
@@ -161,10 +166,10 @@ class BodyModel:
             return np.c_[(ndc[:, 0] + 1.0) * 0.5 * width, (1.0 - ndc[:, 1]) * 0.5 * height]
 
         try:
-            self._cameras[camera] = (view[0, :3], project)
+            self._cameras[camera] = (view, project)
         except TypeError:
             pass
-        return view[0, :3], project
+        return view, project
 
     def _hide(self, pixels: np.ndarray, z: np.ndarray) -> np.ndarray:
         """``pixels`` (..., 2) with the points whose height ``z`` (...) is below :attr:`hidden_below_z` set to NaN."""
@@ -204,18 +209,15 @@ class BodyModel:
         z = z_a[:, limbs, None] + t[..., 0] * (z_b - z_a)[:, limbs, None]
         return self._hide(points.reshape(a.shape[0], -1, 2), z.reshape(a.shape[0], -1))
 
-    def surface_depths(self, markers: np.ndarray, camera: Projector) -> np.ndarray:
-        """``(N, L * K)`` m: how far along ``camera``'s view axis the limbs' near surface lies at the points of
-        :meth:`interior` (the axis's depth less the capsule's radius), for a depth image to be compared with."""
-        markers = np.asarray(markers, dtype=float)
+    def surface_depths(self, bodies: ProjectedBodies) -> np.ndarray:
+        """``(N, L * K)`` m: how far along the camera's view axis the limbs' near surface lies at the points
+        of :meth:`interior` (the axis's depth, linear along it, less the capsule's radius), for a depth
+        image to be compared with."""
         limbs = self.limbs
-        starts = np.stack([self._point(self.capsules[k].start, markers) for k in limbs], axis=1)  # (N, L, 3)
-        ends = np.stack([self._point(self.capsules[k].end, markers) for k in limbs], axis=1)
-        t = np.linspace(0.0, 1.0, self.points_per_side)[None, None, :, None]
-        points = starts[:, :, None] + t * (ends - starts)[:, :, None]  # (N, L, K, 3)
-        view = camera.view_matrix()
-        depth = -(points @ view[2, :3] + view[2, 3])  # OpenGL: the camera looks down its -z
-        return (depth - self._radius[limbs][None, :, None]).reshape(markers.shape[0], -1)
+        t = np.linspace(0.0, 1.0, self.points_per_side)[None, None, :]
+        depth_a, depth_b = bodies.depth_a[:, limbs, None], bodies.depth_b[:, limbs, None]
+        depth = depth_a + t * (depth_b - depth_a) - self._radius[limbs][None, :, None]
+        return depth.reshape(depth.shape[0], -1)
 
     def covers(self, bodies: ProjectedBodies, pixels: np.ndarray, capsules: np.ndarray | None = None) -> np.ndarray:
         """``(N, P)``: whether each of ``pixels`` (P, 2) lies inside body ``n``'s silhouette (the union of
