@@ -134,6 +134,7 @@ def _spin_worker(name: str, seed: int, kwargs: dict) -> None:
 
 
 def spin(seed: int, steps: int, kwargs: dict) -> float:
+    cores = os.sched_getaffinity(0)
     os.sched_setaffinity(0, {0})
     memory = shared_memory.SharedMemory(create=True, size=1 << 20)
     worker = None
@@ -168,7 +169,7 @@ def spin(seed: int, steps: int, kwargs: dict) -> float:
     finally:
         if worker is not None and worker.is_alive():
             worker.terminate()
-        os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
+        os.sched_setaffinity(0, cores)  # this process's own cores again
         memory.close()
         memory.unlink()
 

@@ -39,7 +39,7 @@ class MotorGroup:
     @classmethod
     def of(cls, name: str, indices: ArrayLike, forces: ArrayLike, max_velocities: ArrayLike,
            position_gain: float = 0.3, velocity_gain: float = 1.0) -> MotorGroup:
-        """The group of joints ``indices`` (PyBullet's) with one force and speed cap each (> 0, finite)."""
+        """The group of joints ``indices`` (PyBullet's) with one force and speed cap each (>= 0, finite)."""
         joints = [int(j) for j in np.asarray(indices).reshape(-1)]
         limits = [np.asarray(values, dtype=float).reshape(-1) for values in (forces, max_velocities)]
         if any(len(values) != len(joints) for values in limits) or not all(

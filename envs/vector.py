@@ -22,7 +22,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
-from hoap_actions.envs.vector_workers import SpinningWorkers
+from hoap_actions.envs.vector_workers import SpinningWorkers, attribute_value, step_or_reset
 from hoap_actions.errors import InvalidInputError
 
 __all__ = ["DEFAULT_SPIN_S", "HybridVectorEnv", "make_hybrid"]
@@ -95,14 +95,9 @@ class HybridVectorEnv(VectorEnv):
                                     f"sub-env; got shape {actions.shape}")  # refused before any sub-env steps
         self.remote.step(actions[1:].astype(self.single_action_space.dtype, copy=False))
         try:
-            if self._local_done:
-                obs, info = self.local.reset()
-                local = (obs, 0.0, False, False, info)
-            else:
-                local = self.local.step(actions[0])
+            local, self._local_done = step_or_reset(self.local, actions[0], self._local_done)
         finally:
             remote = self.remote.gather()  # the workers' step is under way: collect it, so the env stays usable
-        self._local_done = bool(local[2] or local[3])
         results = [local, *remote]
         return (self._batched([r[0] for r in results]),
                 np.array([float(r[1]) for r in results]),
@@ -134,8 +129,7 @@ class HybridVectorEnv(VectorEnv):
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
         self.remote.send("call", [(name, args, kwargs)] * (self.num_envs - 1))
         try:
-            attribute = self.local.get_wrapper_attr(name)
-            first = attribute(*args, **kwargs) if callable(attribute) else attribute
+            first = attribute_value(self.local, name, args, kwargs)
         finally:
             rest = self.remote.gather()
         return (first, *rest)

@@ -24,7 +24,7 @@ from gymnasium.vector.utils import CloudpickleWrapper
 
 from hoap_actions.errors import EnvClosedError, InvalidInputError
 
-__all__ = ["SpinningWorkers"]
+__all__ = ["SpinningWorkers", "attribute_value", "step_or_reset"]
 
 BUFFER_BYTES = 16 << 20  # per worker and direction; shared memory is only paid for where written
 _HEADER = 32  # int64: asked, answered, command length (negative: a raw action's bytes), answer length
@@ -78,6 +78,22 @@ class SpinningWorkers:
         self._links = []
 
 
+def step_or_reset(env: gymnasium.Env, action: np.ndarray, done: bool) -> tuple[tuple, bool]:
+    """One sub-env's step as Gymnasium's vector envs make it by default (``AutoresetMode.NEXT_STEP``): after
+    an episode ended (``done``), a reset with reward 0 instead of a step; and whether this one ended."""
+    if done:
+        obs, info = env.reset()
+        return (obs, 0.0, False, False, info), False
+    result = env.step(action)
+    return result, bool(result[2] or result[3])
+
+
+def attribute_value(env: gymnasium.Env, name: str, args: tuple = (), kwargs: dict | None = None) -> Any:
+    """A sub-env's attribute ``name`` (through its wrappers), called with ``args`` if it is a method."""
+    attribute = env.get_wrapper_attr(name)
+    return attribute(*args, **(kwargs or {})) if callable(attribute) else attribute
+
+
 class _Failure:
     """An exception raised in a worker, carried back to the caller."""
 
@@ -101,14 +117,16 @@ class _Link:
 
     def ask(self, message: tuple) -> None:
         _write(self.memory, _HEADER, 2, self.header, message)
-        self.asked += 1
-        self.header[0] = self.asked
-        self.to_worker.release()
+        self._post()
 
     def ask_step(self, action: np.ndarray) -> None:
         raw = np.ascontiguousarray(action).tobytes()
         self.memory.buf[_HEADER: _HEADER + len(raw)] = raw
         self.header[2] = -len(raw)
+        self._post()
+
+    def _post(self) -> None:
+        """The message written, tell the worker: the count it waits on, then the semaphore."""
         self.asked += 1
         self.header[0] = self.asked
         self.to_worker.release()
@@ -194,22 +212,14 @@ def _serve(env_fn: CloudpickleWrapper, name: str, to_worker: Any, to_caller: Any
             reply(None)
             break
         try:
-            if command == "step" and done:
-                obs, info = env.reset()
-                answer: Any = (obs, 0.0, False, False, info)
-            elif command == "step":
-                answer = env.step(*args)
+            if command == "step":
+                answer, done = step_or_reset(env, args[0], done)
             elif command == "reset":
-                answer = env.reset(**args[0])
+                answer, done = env.reset(**args[0]), False
             elif command == "call":
-                attribute = env.get_wrapper_attr(args[0])
-                answer = attribute(*args[1], **args[2]) if callable(attribute) else attribute
+                answer = attribute_value(env, *args)
             else:
                 answer = env.get_wrapper_attr(args[0])
-            if command == "step":
-                done = bool(answer[2] or answer[3])
-            elif command == "reset":
-                done = False
         except Exception as error:
             answer = _Failure(error)
         reply(answer)
