@@ -106,6 +106,9 @@ class HoapEnv(gymnasium.Env):
     task_cls: ClassVar[type[Task]]
     ik_periods: ClassVar[Mapping[str, int]] = IK_PERIOD
     """ee_delta's physics ticks per IK step by robot model when ``ik_period`` is not given."""
+    robot_stances: ClassVar[Mapping[str, tuple[float, float]]] = {}
+    """Where a robot model stands in this env (its ankles' midpoint on the floor, m), when not where
+    :class:`~hoap_actions.envs.robot.Robot` stands it by default."""
 
     def __init__(
         self,
@@ -138,7 +141,7 @@ class HoapEnv(gymnasium.Env):
         self.sim = Sim(gui=render_mode == "human")
         try:
             self.sim.set_solver_iterations(SOLVER_ITERATIONS[robot])
-            self.robot = Robot(self.sim, model=robot)
+            self.robot = Robot(self.sim, model=robot, feet_xy=self.robot_stances.get(robot))
             self.scene = Scene(self.sim)
             if camera not in self.sim.cameras:
                 raise InvalidInputError(

@@ -268,6 +268,11 @@ class ImitateEnv(HoapEnv):
     """The welded robot's hand IK every tick here (the other envs: every 4): the block skills' servoed pushes
     lost to 4 ticks, paired on held-out Imitate 94450-94649, execution ceiling 178 -> 163 of 200
     (``docs/experiments/imitation.md``)."""
+    robot_stances = {"full": world.FIXED_LEGS_FEET_XY}
+    """The free-standing robot stands where the welded one does (3 cm further back, 5 cm further left than
+    in the peg task): there its hand is headed as the welded robot's over the block area (3 degrees at the
+    centre, not 21), within the thumb's reach of a face for most targets; on validation demonstrations
+    90000-90099 its execution ceiling went 76 -> 91 of 100 (``docs/experiments/imitation.md``)."""
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         replay = self._replay_option(options)
