@@ -284,3 +284,39 @@ def test_each_env_steps_its_hand_ik_at_its_own_default_period_unless_told(env_id
     finally:
         env.close()
         told.close()
+
+
+@pytest.mark.parametrize("env_id, robot, feet", [
+    ("hoap_actions/Imitate-v0", "full", world.FIXED_LEGS_FEET_XY),
+    ("hoap_actions/Imitate-v0", "fixed_legs", world.FIXED_LEGS_FEET_XY),
+    ("hoap_actions/PegInsert-v0", "full", world.ROBOT_FEET_XY),
+    ("hoap_actions/PegInsert-v0", "fixed_legs", world.FIXED_LEGS_FEET_XY),
+])
+def test_each_env_stands_its_robot_where_it_says(env_id, robot, feet):
+    env = gymnasium.make(env_id, robot=robot, control_mode="ee_delta")
+    try:
+        env.reset(seed=0)
+        assert env.unwrapped.robot.feet_xy == pytest.approx(feet)
+        soles = [env.unwrapped.robot.frame_pose(sole)[0] for sole in ("r_sole", "l_sole")]
+        assert np.mean(soles, axis=0)[:2] == pytest.approx(feet, abs=0.02)  # the soles are where it stands
+    finally:
+        env.close()
+
+
+def test_in_imitate_both_robots_head_the_hand_alike_over_the_block_area():
+    """Why the free-standing robot stands where the welded one does: there the IK model heads its hand as the
+    welded robot's (within 2 degrees) over the block area, so the thumb reaches the same target headings."""
+    from hoap_actions.policies.block_skills import GRASP_Z, BlockHand
+
+    headings = {}
+    for robot in ("full", "fixed_legs"):
+        env = make(robot=robot, control_mode="ee_delta")
+        try:
+            obs, _ = env.reset(seed=0)
+            hand = BlockHand(env)
+            hand.start(obs)
+            headings[robot] = [hand.heading_at(np.array([0.0, y, GRASP_Z])) for y in (-0.06, 0.0, 0.06)]
+        finally:
+            env.close()
+    assert np.degrees(np.abs(np.subtract(headings["full"], headings["fixed_legs"]))).max() < 2.0
+    assert np.all(np.diff(headings["full"]) > 0)  # turned further left the further left it reaches
