@@ -58,6 +58,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "too (vision.depth_sensor.DepthSensor); the edges-only variant stays colour alone")
     parser.add_argument("--from-markers", action="store_true",
                         help="track from the recorded markers and block instead of images (no speed part)")
+    parser.add_argument("--models", type=Path, default=None,
+                        help="an action models directory to track with (default: the shipped models), e.g. an older "
+                             "one for a paired comparison")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet "
                              "machine")
@@ -147,9 +150,10 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     from hoap_actions.demonstration.datasets import load_demonstrations
     from hoap_actions.models.shipped import load_default_models
+    from hoap_actions.primitives.models.action_models import ActionModels
 
     started = time.perf_counter()
-    models = load_default_models()
+    models = load_default_models() if args.models is None else ActionModels.load(args.models)
     if args.speed_only:
         result = {"protocol": {"seed": args.seeds[0], "episode": args.episodes[-1], "filter_seed": 0},
                   "speed": speed(models, load_demonstrations(ensure_recording("paper", args.seeds[0], args.data)),
@@ -171,7 +175,8 @@ def main(argv: list[str] | None = None) -> dict:
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
-                     "from_markers": args.from_markers, "depth": args.depth, "models": "shipped default models",
+                     "from_markers": args.from_markers, "depth": args.depth,
+                     "models": "shipped default models" if args.models is None else str(args.models),
                      "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
         "summary": summaries[variants[0][0]], "per_recording": per_recording,

@@ -495,3 +495,63 @@ def test_the_object_parse_of_a_whole_movement_follows_the_objects_own_classes(sm
         assert [s.class_id for s in decoded] == [c for c, *_ in runs(labels) if c != -1]
         voted = np.concatenate([np.full(s.end - s.start, s.class_id) for s in decoded])
         assert np.mean(voted == labels[decoded[0].start:decoded[-1].end]) > 0.95
+
+
+@pytest.fixture(scope="module")
+def posed(small):
+    """The small preset's models with pose classes (approach and remove refitted with a thin-plate mean)."""
+    demos, discovery, _, _ = small
+    lengths = [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    return ActionModels(pose_mean_model="tps", smoothing=0.5).fit(H, lengths, discovery, demos.fps, demos.marker_names)
+
+
+def test_pose_classes_refit_approach_and_remove_and_leave_the_recognition_classes_alone(small, posed):
+    _, discovery, plain, _ = small
+    assert plain.pose_classes_ == {}
+    expected = sorted(c.primitive_id for c in discovery.classes_ if c.kind != "manipulation")
+    assert sorted(posed.pose_classes_) == expected
+    for cid, pose in posed.pose_classes_.items():
+        same = posed.classes_[cid]
+        assert pose.kind == same.kind and pose.phmm.n_states == same.phmm.n_states
+        np.testing.assert_array_equal(pose.centre, same.centre)
+        assert pose.phmm.mean_model == "tps" and same.phmm.mean_model == "linear"
+    for cid, model in plain.classes_.items():  # the classes recognition and synthesis read are the same fit
+        np.testing.assert_array_equal(posed.classes_[cid].phmm.mean_bar_, model.phmm.mean_bar_)
+        np.testing.assert_array_equal(posed.classes_[cid].phmm.W_, model.phmm.W_)
+    with pytest.raises(InvalidInputError, match="pose_mean_model must be None, 'linear' or 'tps'"):
+        ActionModels(pose_mean_model="cubic")._check_params()
+
+
+def test_pose_classes_survive_a_round_trip_and_older_directories_load_without_them(posed, tmp_path):
+    path = tmp_path / "models"
+    posed.save(path)
+    again = ActionModels.load(path)
+    assert sorted(again.pose_classes_) == sorted(posed.pose_classes_)
+    for cid, pose in posed.pose_classes_.items():
+        np.testing.assert_array_equal(again.pose_classes_[cid].phmm.V_, pose.phmm.V_)
+    first = sorted(posed.pose_classes_)[0]
+    other = next(c for c, model in posed.classes_.items() if model.kind == "manipulation")  # not what pose refits
+    edit_manifest(path, lambda m: m["pose_classes"][0].update(id=other, file=f"pose_{other}.npz"))
+    shutil.copy(path / f"pose_{first}.npz", path / f"pose_{other}.npz")
+    with pytest.raises(DataFileError, match=r"pose_classes\[\d+\] must refit a class of the same kind and states"):
+        ActionModels.load(path)
+    edit_manifest(path, lambda m: (m.update(format_version=3), m.pop("pose_classes")))
+    (path / f"pose_{other}.npz").unlink()
+    for cid in posed.pose_classes_:
+        (path / f"pose_{cid}.npz").unlink()
+    assert ActionModels.load(path).pose_classes_ == {}
+
+
+def test_the_tracker_poses_approach_and_remove_with_the_pose_classes_and_warns_without_them(small, posed):
+    from hoap_actions.errors import MissingModelPartWarning
+    from hoap_actions.tracking.tracking_models import TrackingModels
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tracked = TrackingModels.from_action_models(posed)
+    for cid, model in posed.classes_.items():
+        assert tracked.classes[cid] is posed.pose_classes_.get(cid, model)
+    with pytest.warns(MissingModelPartWarning, match="no pose classes"):
+        plain = TrackingModels.from_action_models(small[2])
+    assert all(plain.classes[cid] is model for cid, model in small[2].classes_.items())

@@ -9,6 +9,7 @@ PHMM trained on a grid of reaches (:mod:`~hoap_actions.tracking.grid_experiment`
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.demonstration.tasks import MARKER_NAMES
-from hoap_actions.errors import InvalidInputError
+from hoap_actions.errors import InvalidInputError, MissingModelPartWarning
 from hoap_actions.primitives.base import check_is_fitted
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.hmm.posture import PostureModel, choose_alpha
@@ -70,10 +71,17 @@ class TrackingModels:
     @classmethod
     def from_action_models(cls, models: ActionModels, posture: PostureModel | None = None) -> TrackingModels:
         """The tracker's view of fitted action models, with ``posture`` if given (else the models' own posture
-        model, ``posture_``, when they carry one)."""
+        model, ``posture_``, when they carry one). Approach and remove are posed by the models' pose classes
+        (``pose_classes_``) when they have them; models without (learned before them, or without
+        ``pose_mean_model``) track with their recognition classes, and a warning says so."""
         check_is_fitted(models)
         posture = posture if posture is not None else getattr(models, "posture_", None)
-        return cls(dict(models.classes_), models.grammar_, tuple(models.marker_names_),
+        if not models.pose_classes_:
+            warnings.warn("these action models have no pose classes (learned without pose_mean_model, or before "
+                          "models kept them): the tracker poses approach and remove with their recognition classes; "
+                          "learn them with pose_mean_model='tps' for the tracker's figures", MissingModelPartWarning,
+                          stacklevel=2)
+        return cls({**models.classes_, **models.pose_classes_}, models.grammar_, tuple(models.marker_names_),
                    int(models.discovery_.hand_marker), posture)
 
 

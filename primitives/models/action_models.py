@@ -133,6 +133,10 @@ class ActionModels(ActionDecoding, Estimator):
         time-stretch factors (in [0.5, 2]); every class's training movement is also
         fitted as if performed that many times as long (resampled in time), so that the chains accept a
         demonstrator slower or faster than those seen. ``()`` (default): none.
+    pose_mean_model
+        ``"tps"`` or ``"linear"``: also fit the approach and remove classes again with that mean model, the
+        classes the tracker poses the arm with (``pose_classes_``); recognition and synthesis keep
+        ``classes_``. ``None`` (default): none.
     progress
         show a bar over the class fits when stderr is a terminal (not saved with the models).
 
@@ -153,13 +157,16 @@ class ActionModels(ActionDecoding, Estimator):
     grasp_offset_
         (3,) the object's centre in the hand's frame while the hand moves it (m; ``None`` when learned
         without object poses).
+    pose_classes_
+        dict class id -> :class:`ClassModel` of the approach and remove classes refitted with
+        ``pose_mean_model`` (the same segments, states and effects; empty without it).
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
-                "action_lifts_", "action_of_class_", "demonstrators_", "grasp_offset_")
+                "action_lifts_", "action_of_class_", "demonstrators_", "grasp_offset_", "pose_classes_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
-    _readable_versions = (1, 2, FORMAT_VERSION)
+    _readable_versions = (1, 2, 3, FORMAT_VERSION)
 
     def __init__(
         self,
@@ -179,6 +186,7 @@ class ActionModels(ActionDecoding, Estimator):
         smoothing: float = 1.0,
         speed_augmentation: tuple[float, ...] = (),
         object_vote: float = 1000.0,
+        pose_mean_model: str | None = None,
         progress: bool = False,
     ) -> None:
         self.covariance_type = covariance_type
@@ -197,6 +205,7 @@ class ActionModels(ActionDecoding, Estimator):
         self.smoothing = smoothing
         self.speed_augmentation = speed_augmentation
         self.object_vote = object_vote
+        self.pose_mean_model = pose_mean_model
         self.progress = progress
 
     def _check_params(self) -> None:
@@ -220,6 +229,8 @@ class ActionModels(ActionDecoding, Estimator):
         number("object_vote", 0.0)
         if self.mean_model not in ("linear", "tps"):
             raise InvalidInputError(f"mean_model must be 'linear' or 'tps'; got {self.mean_model!r}")
+        if self.pose_mean_model not in (None, "linear", "tps"):
+            raise InvalidInputError(f"pose_mean_model must be None, 'linear' or 'tps'; got {self.pose_mean_model!r}")
         if self.unexplained_penalty is not None:
             number("unexplained_penalty", 0.0)
         for name in ("max_states", "n_restarts", "n_candidates"):
@@ -317,7 +328,23 @@ class ActionModels(ActionDecoding, Estimator):
         self.actions_, self.action_lifts_, self.action_of_class_ = (
             ({}, {}, {}) if O is None else self._fit_actions(inputs, O, lengths))
         self.grasp_offset_ = None if O is None else self._fit_grasp_offset(hands, O, lengths)
+        self.pose_classes_ = self._fit_pose_classes(inputs, stretched)
         return self
+
+    def _fit_pose_classes(self, inputs: list[np.ndarray], stretched: dict[float, list[np.ndarray]]
+                          ) -> dict[int, ClassModel]:
+        """The approach and remove classes refitted with ``pose_mean_model``: the arm's pose on the way to and
+        from the object bends with where it goes more than a linear mean follows (validation in
+        ``docs/experiments/tracking.md``)."""
+        if self.pose_mean_model is None:
+            return {}
+        refit = self._with_mean_model()
+        return {int(c.primitive_id): refit._fit_class(c, inputs, stretched, None)
+                for c in self.discovery_.classes_ if c.kind != MANIPULATION}
+
+    def _with_mean_model(self) -> ActionModels:
+        """An unfitted copy of these hyper-parameters with ``mean_model = pose_mean_model``."""
+        return ActionModels(**{**self.get_params(), "mean_model": self.pose_mean_model, "pose_mean_model": None})
 
     def _fit_grasp_offset(self, hands: list[np.ndarray], O: np.ndarray, lengths: Sequence[int]) -> np.ndarray | None:
         """Where the object sits in the hand's frame over the training manipulations (from the first

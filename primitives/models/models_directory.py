@@ -1,8 +1,9 @@
 """The models directory of :class:`~hoap_actions.primitives.models.action_models.ActionModels`: its files
 and the checks every entry of its manifest gets on load (each error names the file and the entry).
 
-Layout (``format_version`` 3; version 1 directories, which have no action level, and version 2
-ones, which have no grasp offset, still load): ``manifest.json`` (``kind`` "ActionModels", ``format_version``,
+Layout (``format_version`` 4; version 1 directories, which have no action level, version 2
+ones, which have no grasp offset, and version 3 ones, which have no pose classes, still load):
+``manifest.json`` (``kind`` "ActionModels", ``format_version``,
 ``params`` the hyper-parameters, ``fps``, ``marker_names``, ``covars_prior`` (D,) or null, and
 ``classes``: per class its ``id``, ``kind``, ``file``, ``effect_centre`` (6,), ``effect_basis``
 (6, r) and ``exit_probability``; and ``actions``, the whole actions of
@@ -40,7 +41,7 @@ __all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest
            "models_from_directory", "names", "positive", "profiles_entry", "read_manifest", "read_models_directory",
            "unique_profiles", "write_models_directory"]
 
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 KIND = "ActionModels"
 MANIFEST = "manifest.json"
 MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
@@ -57,7 +58,7 @@ def foreign_entries(folder: Path) -> list[str]:
         kind = None
     if kind != KIND:
         return entries
-    ours = re.compile(r"^(class|action)_\d+\.npz$")
+    ours = re.compile(r"^(class|action|pose)_\d+\.npz$")
     return [name for name in entries
             if not (name in (*MODELS_FILES, "PROVENANCE.json") or ours.match(name)) or not (folder / name).is_file()]
 
@@ -123,6 +124,11 @@ def write_models_directory(models: Any, folder: Path) -> None:
              "lift_m": models.action_lifts_[aid]}
             for aid, m in models.actions_.items()
         ],
+        "pose_classes": [
+            {"id": cid, "kind": m.kind, "file": f"pose_{cid}.npz", "effect_centre": m.centre.tolist(),
+             "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability}
+            for cid, m in models.pose_classes_.items()
+        ],
     }
     (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
     models.discovery_.save(folder / "discovery.json")
@@ -131,6 +137,8 @@ def write_models_directory(models: Any, folder: Path) -> None:
         model.phmm.save(folder / f"class_{cid}.npz")
     for aid, model in models.actions_.items():
         model.phmm.save(folder / f"action_{aid}.npz")
+    for cid, model in models.pose_classes_.items():
+        model.phmm.save(folder / f"pose_{cid}.npz")
 
 def read_models_directory(path: Path) -> tuple[object, object, dict]:
     """The directory's ``kind``, ``format_version`` and manifest (checked further by :func:`models_from_directory`)."""
@@ -187,11 +195,26 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
             "or the grammar's symbols"
         )
     models.classes_ = dict(sorted(classes.items()))
+    models.pose_classes_ = _pose_classes(directory, manifest, models.classes_, width) if version >= 4 else {}
     return models
+
+
+def _pose_classes(directory: Path, manifest: dict, classes: Mapping[int, ClassModel], width: int
+                  ) -> dict[int, ClassModel]:
+    """The manifest's pose classes, each checked to stand for a class of the same kind and states."""
+    poses = {}
+    for entry in _entries(directory / MANIFEST, manifest, "pose_classes"):
+        pose = _entry_model(directory, entry, "pose_classes", "pose", width)
+        same = classes.get(pose.class_id)
+        if same is None or same.kind != pose.kind or same.phmm.n_states != pose.phmm.n_states:
+            raise DataFileError(f"{directory / MANIFEST}: entry pose_classes[{pose.class_id}] must refit a class of "
+                                f"the same kind and states; the classes are {sorted(classes)}")
+        poses[pose.class_id] = pose
+    return dict(sorted(poses.items()))
 
 def _entries(manifest_path: Path, manifest: dict, key: str) -> list[dict]:
     """The manifest's list ``key`` of models, each an object with an int id and its file ``<prefix>_<id>.npz``."""
-    prefix = {"classes": "class", "actions": "action"}[key]
+    prefix = {"classes": "class", "actions": "action", "pose_classes": "pose"}[key]
     entries = manifest.get(key)
     if not isinstance(entries, list):
         raise DataFileError(f"{manifest_path}: entry {key} must be a list of models")

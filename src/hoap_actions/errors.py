@@ -57,3 +57,7 @@ class ExtrapolationWarning(UserWarning):
 
 class UnseenDemonstratorWarning(UserWarning):
     """A recording's demonstrator is none of those the models learned from: expect lower figures."""
+
+
+class MissingModelPartWarning(UserWarning):
+    """Models from an older or leaner fit lack a part a task can use; it runs without it, less well."""
