@@ -102,13 +102,14 @@ def models():
 
 @pytest.fixture(scope="module")
 def reach(models):
-    """The shipped approach class synthesised for a reach towards the table's centre: (T, 6, 3)."""
+    """A reach towards the table's centre as the tracker poses it: synthesised by the shipped approach's pose
+    class (its thin-plate refit, which the tracker poses approach with): (T, 6, 3)."""
     approach = next(cid for cid, c in models.classes_.items() if c.kind == "approach")
-    model = models.classes_[approach]
+    model = models.pose_classes_[approach]
     with np.errstate(all="ignore"):
         phi = model.centre.copy()
         phi[3:5] += [0.05, -0.04]
-        movement = models.synthesize(approach, phi)
+        movement = models._synthesize(model, phi, None)
     return approach, phi, movement
 
 
@@ -210,15 +211,16 @@ def test_a_few_particles_leap_ahead_in_their_chain_by_at_most_the_set_share(mode
     chain; no state passes the chain's last."""
     body = BodyModel(models.marker_names_, TORSO_BASE)
     tracker = ActionTracker(models, body, CAMERA, n_particles=20000, random_state=0)
-    tracker.class_id = np.resize(sorted(models.classes_), tracker.n_particles)  # every class, not only the first
-    sizes = np.array([models.classes_[c].phmm.n_states for c in tracker.class_id])
+    tracked = tracker.models.classes  # the classes the tracker runs: approach and remove are the pose classes
+    tracker.class_id = np.resize(sorted(tracked), tracker.n_particles)  # every class, not only the first
+    sizes = np.array([tracked[c].phmm.n_states for c in tracker.class_id])
     tracker.state = np.floor((sizes - 1) / 2.0)
     before, classes = tracker.state.copy(), tracker.class_id.copy()
     tracker._propagate()
     long_chains = sizes >= 10  # from mid-chain, no advance reaches their last state
     assert np.array_equal(tracker.class_id[long_chains], classes[long_chains]) and np.all(tracker.state <= sizes - 1)
-    rates = np.array([1.0 - models.classes_[c].phmm.transmat_[int(s), int(s)] for c, s in zip(classes, before)])
-    approach = np.array([models.classes_[c].kind == "approach" for c in classes])
+    rates = np.array([1.0 - tracked[c].phmm.transmat_[int(s), int(s)] for c, s in zip(classes, before)])
+    approach = np.array([tracked[c].kind == "approach" for c in classes])
     leap = tracker.state - before - rates * tracker.speed
     assert np.any(approach & long_chains) and np.all(np.abs(leap[approach & long_chains]) < 1e-9)
     leap, sizes = leap[long_chains & ~approach], sizes[long_chains & ~approach]
