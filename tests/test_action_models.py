@@ -555,3 +555,10 @@ def test_the_tracker_poses_approach_and_remove_with_the_pose_classes_and_warns_w
     with pytest.warns(MissingModelPartWarning, match="no pose classes"):
         plain = TrackingModels.from_action_models(small[2])
     assert all(plain.classes[cid] is model for cid, model in small[2].classes_.items())
+
+
+def test_learn_checks_its_hyper_parameters_before_reading_any_recording(tmp_path):
+    from hoap_actions.primitives.pipelines.learn import learn
+
+    with pytest.raises(InvalidInputError, match="pose_mean_model must be None, 'linear' or 'tps'"):
+        learn([tmp_path / "not-recorded-yet.h5"], pose_mean_model="cubic")

@@ -76,7 +76,7 @@ class TrackingModels:
         ``pose_mean_model``) track with their recognition classes, and a warning says so."""
         check_is_fitted(models)
         posture = posture if posture is not None else getattr(models, "posture_", None)
-        if not models.pose_classes_:
+        if models.pose_mean_model is None:  # learned without them, or loaded from a directory made before them
             warnings.warn("these action models have no pose classes (learned without pose_mean_model, or before "
                           "models kept them): the tracker poses approach and remove with their recognition classes; "
                           "learn them with pose_mean_model='tps' for the tracker's figures", MissingModelPartWarning,

@@ -99,8 +99,10 @@ def learn(
     ``discovery_dir``: a ``hoap-actions discover`` folder fitted on the same demonstrations (same
     files, same order), to skip discovery. ``merging``: :class:`PrimitiveDiscovery`'s (its default
     when ``None``); a ``discovery_dir`` fitted with another one is refused. ``params`` go to
-    :class:`ActionModels`.
+    :class:`ActionModels`, checked before anything is read.
     """
+    estimator = ActionModels(**params, progress=progress)
+    estimator._check_params()  # a wrong hyper-parameter fails now, not after discovery's minutes
     episodes, header, demonstrators = load_training_demonstrations(list(demos_paths))
     lengths = [e.T for e in episodes]
     H = np.concatenate([e.H.reshape(e.T, -1) for e in episodes])
@@ -114,8 +116,7 @@ def learn(
             raise InvalidInputError(f"the discovery in {discovery_dir} merged with {discovery.merging!r}, not the "
                                     f"{merging!r} asked for; give one of them, or a discovery made with {merging!r}")
     discovered = time.perf_counter()
-    models = ActionModels(**params, progress=progress).fit(H, lengths, discovery, header.fps, header.marker_names, O=O,
-                                                           demonstrators=demonstrators)
+    models = estimator.fit(H, lengths, discovery, header.fps, header.marker_names, O=O, demonstrators=demonstrators)
     trained = time.perf_counter()
     phmms = [m.phmm for m in models.classes_.values()]
     frames = sum(s.end - s.start for c in discovery.classes_ for s in c.segments)
