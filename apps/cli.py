@@ -201,6 +201,7 @@ def _track(args: argparse.Namespace) -> int:
         track_markers_episode,
         tracking_video_frames,
     )
+    from hoap_actions.tracking.smoothing import MAX_LAG
     from hoap_actions.vision.body_model import BodyModel
     from hoap_actions.vision.depth_sensor import DepthSensor
 
@@ -209,10 +210,12 @@ def _track(args: argparse.Namespace) -> int:
         raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
                                 "--edges-only, --noise and --depth")
     if args.grid_model and (args.models or args.posture or args.from_markers or args.side_camera or args.clutter
-                            or args.noise or args.depth):
+                            or args.noise or args.depth or args.lag):
         raise InvalidInputError("--grid-model trains its own approach model on the recording's 3 x 3 grid and tracks "
                                 "its one camera; leave out --models, --posture, --from-markers, --side-camera, "
-                                "--clutter, --noise and --depth")
+                                "--clutter, --noise, --depth and --lag")
+    if not 0 <= args.lag <= MAX_LAG:
+        raise InvalidInputError(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
     args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "offsets")
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
@@ -224,13 +227,13 @@ def _track(args: argparse.Namespace) -> int:
         posture = PostureModel.load(args.posture) if args.posture else None
         if args.from_markers:
             result = track_markers_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
-                                           pose_proposal=args.pose_proposal, posture=posture)
+                                           pose_proposal=args.pose_proposal, posture=posture, lag=args.lag)
         else:
             result = track_episode(models, demos, args.episode, particles=args.particles, seed=args.seed,
                                    keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
                                    silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera),
                                    pose_proposal=args.pose_proposal, posture=posture,
-                                   depth_sensor=DepthSensor() if args.depth else None)
+                                   depth_sensor=DepthSensor() if args.depth else None, lag=args.lag)
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
@@ -253,6 +256,11 @@ def _track(args: argparse.Namespace) -> int:
           + ("no frame has a known class" if summary["frame_accuracy"] is None else
              f"class agrees with discovery's on {summary['frame_accuracy']:.0%} of frames, its kind on "
              f"{summary['kind_accuracy']:.0%}"))
+    if args.lag:
+        smoothed = summary["smoothed"]
+        print(f"smoothed {args.lag} frames behind: RMS pooled {100 * smoothed['rms_m_pooled']:.1f} cm, all markers "
+              f"{100 * smoothed['rms_m_all']:.1f} cm"
+              + ("" if smoothed["frame_accuracy"] is None else f"; class agrees on {smoothed['frame_accuracy']:.0%}"))
     return 0
 
 
@@ -473,6 +481,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--posture", type=_path,
                        help="a posture model file (PostureModel JSON) that poses the shoulder and elbow from the hand "
                             "(--pose-proposal hand)")
+    track.add_argument("--lag", type=int, default=0,
+                       help="also report fixed-lag smoothed estimates, each frame read this many frames later (the "
+                            "demonstration is recorded: later frames tell which particles were right); default 0")
     track.add_argument("--grid-model", choices=["linear", "thin-plate"],
                        help="the paper's experiment (Figs. 10-12) on an approach-grid recording: train the approach "
                             "PHMM on its 3 x 3 grid (thin-plate: with a posture model; a minute or more) and track "

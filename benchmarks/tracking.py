@@ -61,10 +61,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--models", type=Path, default=None,
                         help="an action models directory to track with (default: the shipped models), e.g. an older "
                              "one for a paired comparison")
+    parser.add_argument("--lag", type=int, default=0,
+                        help="also score fixed-lag smoothed estimates, this many frames behind (the same filter run)")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet "
                              "machine")
     args = parser.parse_args(argv)
+    from hoap_actions.tracking.smoothing import MAX_LAG
+    if not 0 <= args.lag <= MAX_LAG:
+        parser.error(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
     if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only or args.depth):
         parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera, --depth "
                      "and --speed-only")
@@ -72,7 +77,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
-                      side_camera=False, from_markers=False, depth=False) -> dict:
+                      side_camera=False, from_markers=False, depth=False, lag=0) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
@@ -83,11 +88,11 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
     runs = []
     for index in episodes:
         if from_markers:
-            result = track_markers_episode(models, demos, index, particles=particles, seed=0)
+            result = track_markers_episode(models, demos, index, particles=particles, seed=0, lag=lag)
         else:
             result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
                                    image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera),
-                                   depth_sensor=DepthSensor() if depth else None)
+                                   depth_sensor=DepthSensor() if depth else None, lag=lag)
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -95,19 +100,26 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         runs.append(summary)
         print(f"  episode {index:3d} ({demos[index].ground_truth.action}): RMS all {100 * summary['rms_m_all']:.1f} cm "
               f"(held still {100 * summary['baseline_rms_m_all']:.1f}), classes {summary['frame_accuracy']:.0%}, "
-              f"{summary['hz']:.0f} Hz", flush=True)
+              f"{summary['hz']:.0f} Hz" + (f"; smoothed {100 * summary['smoothed']['rms_m_all']:.1f} cm, "
+                                         f"{summary['smoothed']['frame_accuracy']:.0%}" if lag else ""), flush=True)
     truth = np.concatenate([r["truth"] for r in runs])
-    recognized = np.concatenate([r["recognized"] for r in runs])
     known = truth != UNKNOWN
     majority = np.bincount(truth[known]).argmax()
+
+    def scores(estimates: list[dict]) -> dict:
+        recognized = np.concatenate([e["recognized"] for e in estimates])
+        return {
+            "rms_m": {m: float(np.sqrt(np.mean([e["rms_m"][m] ** 2 for e in estimates]))) for m in SCORED_MARKERS},
+            "rms_m_all": float(np.sqrt(np.mean([e["rms_m_all"] ** 2 for e in estimates]))),
+            "rms_m_pooled": float(np.sqrt(np.mean([e["rms_m_pooled"] ** 2 for e in estimates]))),
+            "frame_accuracy": float(np.mean(recognized[known] == truth[known])),
+        }
     pooled = {
-        "rms_m": {m: float(np.sqrt(np.mean([r["rms_m"][m] ** 2 for r in runs]))) for m in SCORED_MARKERS},
-        "rms_m_all": float(np.sqrt(np.mean([r["rms_m_all"] ** 2 for r in runs]))),
+        **scores(runs),
         "baseline_rms_m_all": float(np.sqrt(np.mean([r["baseline_rms_m_all"] ** 2 for r in runs]))),
         "phi_error_m": float(np.median([r["phi_error_m"] for r in runs if r["phi_error_m"] is not None])),
         "approaches_converged": sum(r["approaches_converged"] for r in runs),
         "approaches": sum(r["approaches"] for r in runs),
-        "frame_accuracy": float(np.mean(recognized[known] == truth[known])),
         "kind_accuracy": float(np.average([r["kind_accuracy"] for r in runs],  # each episode's share of known frames
                                           weights=[np.sum(np.asarray(r["truth"]) != UNKNOWN) for r in runs])),
         "baseline_frame_accuracy": float(np.mean(truth[known] == majority)),
@@ -115,6 +127,10 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
     }
     found = [r["frames_to_converge"] for r in runs if r["frames_to_converge"] is not None]
     pooled["frames_to_converge_median"] = float(np.median(found)) if found else None
+    if lag:
+        pooled["smoothed"] = {"lag": lag, **scores([r["smoothed"] for r in runs])}
+        for r in runs:
+            del r["smoothed"]["recognized"]
     return {"pooled": pooled,
             "episodes": [{k: v for k, v in r.items() if k not in ("recognized", "truth")} for r in runs]}
 
@@ -139,10 +155,15 @@ def summarise(per_recording: dict) -> dict:
     """Mean and 95 % interval over the recordings of each pooled figure."""
     pooled = [r["pooled"] for r in per_recording.values()]
     summary = {key: spread([p[key] for p in pooled]) for key in
-               ("rms_m_all", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
+               ("rms_m_all", "rms_m_pooled", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
                 "baseline_frame_accuracy", "hz")}
     for marker in pooled[0]["rms_m"]:
         summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
+    if "smoothed" in pooled[0]:  # the fixed-lag estimates of the same filter runs
+        for key in ("rms_m_all", "rms_m_pooled", "frame_accuracy"):
+            summary[f"smoothed_{key}"] = spread([p["smoothed"][key] for p in pooled])
+        for marker in pooled[0]["smoothed"]["rms_m"]:
+            summary[f"smoothed_rms_m_{marker}"] = spread([p["smoothed"]["rms_m"][marker] for p in pooled])
     return summary
 
 
@@ -170,12 +191,12 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"paper seed {seed}, {cues}:", flush=True)
             store[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise,
                                             silhouette, args.side_camera, args.from_markers,
-                                            args.depth and silhouette)
+                                            args.depth and silhouette, args.lag)
     summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
-                     "from_markers": args.from_markers, "depth": args.depth,
+                     "from_markers": args.from_markers, "depth": args.depth, "lag": args.lag,
                      "models": "shipped default models" if args.models is None else str(args.models),
                      "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},

@@ -153,6 +153,15 @@ def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
     assert "--from-markers tracks without images" in error and not (tmp_path / "v.mp4").exists()
     assert main(["track", "--demos", str(path), "--from-markers", "--depth"]) == 2
     assert "--depth" in capsys.readouterr().err.strip().splitlines()[-1]
+    smoothed = tmp_path / "smoothed.json"
+    assert main(["track", "--demos", str(path), "--episode", "0", "--particles", "100", "--from-markers", "--lag",
+                 "10", "--json", str(smoothed)]) == 0
+    lagged = json.loads(smoothed.read_text())
+    assert lagged["rms_m_all"] == summary["rms_m_all"]  # the filter is the same run; smoothing is read beside it
+    assert lagged["smoothed"]["lag"] == 10 and len(lagged["smoothed"]["recognized"]) == result.truth_markers.shape[0]
+    assert np.isfinite(lagged["smoothed"]["rms_m_all"]) and lagged["smoothed"]["rms_m_all"] != summary["rms_m_all"]
+    assert main(["track", "--demos", str(path), "--from-markers", "--lag", "-1"]) == 2
+    assert "--lag must be 0.." in capsys.readouterr().err.strip().splitlines()[-1]
 
 
 def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):

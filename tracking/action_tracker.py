@@ -59,6 +59,7 @@ from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
+from hoap_actions.tracking.smoothing import MAX_LAG, ParticleLineage, SmoothedFrame
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
 
@@ -172,6 +173,9 @@ class ActionTracker:
         state's covariance then).
     random_state
         seed of the filter's draws.
+    lag
+        frames of fixed-lag smoothing behind :meth:`smoothed_frames` (0: each frame's filtered estimate); the
+        filter itself, and what :meth:`step` returns, do not depend on it.
 
     Attributes
     ----------
@@ -186,7 +190,7 @@ class ActionTracker:
                  end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
-                 depth_sigma_m: float = DEPTH_SIGMA_M) -> None:
+                 depth_sigma_m: float = DEPTH_SIGMA_M, lag: int = 0) -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
@@ -197,6 +201,8 @@ class ActionTracker:
         if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):
             raise InvalidInputError(f"object_still_m must be > 0 or None (off) and object_moving_m > 0; got "
                                     f"{object_still_m!r}, {object_moving_m!r}")
+        if isinstance(lag, bool) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= MAX_LAG:
+            raise InvalidInputError(f"lag must be an int in 0..{MAX_LAG} (frames); got {lag!r}")
         if tuple(body.marker_names) != tuple(models.marker_names):
             raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
                                     f"{list(models.marker_names)}")
@@ -212,6 +218,7 @@ class ActionTracker:
         self.end_diffusion_m = float(end_diffusion_m)
         self.silhouette_sigma = float(silhouette_sigma)
         self.depth_sigma_m = float(depth_sigma_m)
+        self.lag = int(lag)
         self.object_still_m = None if object_still_m is None else float(object_still_m)
         self.object_moving_m = float(object_moving_m)
         self._rng = np.random.default_rng(random_state)
@@ -253,6 +260,22 @@ class ActionTracker:
         return np.array([*(hand[:2] - object_start[:2]), hand[2]])
 
     def reset(self) -> None:
+        """Start a new track: particles drawn from the prior (:meth:`_draw_prior`), no frame seen."""
+        self._lineage = ParticleLineage(self.lag)
+        self._smoothed: list[SmoothedFrame] = []
+        self._frames_seen = 0
+        self._draw_prior()
+
+    def smoothed_frames(self, final: bool = False) -> list[SmoothedFrame]:
+        """The fixed-lag estimates (:mod:`~hoap_actions.tracking.smoothing`) ready since the last call: frame
+        ``t``'s once frame ``t + lag`` was weighed; ``final`` (the track is over) reads the frames still
+        waiting with the last frame's weights. With ``lag=0``, each frame's filtered estimate."""
+        if final:
+            self._smoothed += self._lineage.flush(self.weights)
+        ready, self._smoothed = self._smoothed, []
+        return ready
+
+    def _draw_prior(self) -> None:
         """Particles drawn from the grammar's first classes at their first state, ends from training effects."""
         targets, start_row, _ = self._grammar_rows
         first = self._rng.choice(targets, size=self.n_particles, p=start_row / start_row.sum())
@@ -349,7 +372,8 @@ class ActionTracker:
         likelihood = likelihood + self._object_motion_log_likelihood()
         reinitialised = not np.any(np.isfinite(likelihood))
         if reinitialised:  # nothing explains the image: start again from the prior, never NaN
-            self.reset()
+            self._smoothed += self._lineage.flush(self.weights)
+            self._draw_prior()
             markers = self.markers()
             likelihood = np.zeros(self.n_particles)
         with np.errstate(divide="ignore"):  # a weight that underflowed to 0 stays 0 (log -inf), never NaN
@@ -358,6 +382,8 @@ class ActionTracker:
         weights /= weights.sum()
         frame = self._summary(weights, markers, float(likelihood.max()), reinitialised)
         self.weights = weights
+        self._smoothed += self._lineage.push(self._frames_seen, markers, self.class_id, weights)
+        self._frames_seen += 1
         if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
             self._resample(weights)
         return frame
@@ -540,6 +566,7 @@ class ActionTracker:
         """Systematic resampling: one uniform draw, N evenly spaced pointers into the cumulative weights."""
         positions = (self._rng.random() + np.arange(self.n_particles)) / self.n_particles
         index = np.minimum(np.searchsorted(np.cumsum(weights), positions), self.n_particles - 1)
+        self._lineage.resampled(index)
         self.class_id, self.state, self.speed = self.class_id[index], self.state[index], self.speed[index]
         self.offset = self.offset[index]
         self.start, self.end, self.resting = self.start[index], self.end[index], self.resting[index]

@@ -27,6 +27,7 @@ from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame
 from hoap_actions.tracking.poses import mean_poses
+from hoap_actions.tracking.smoothing import SmoothedFrame
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
 from hoap_actions.vision.depth_sensor import DepthSensor
@@ -62,15 +63,15 @@ class TrackResult:
     images: list[np.ndarray] = field(default_factory=list)
     views: int = 1                      # cameras scored together (eq. 9); 0: tracked from markers
     kinds: dict[int, str] = field(default_factory=dict)  # class id -> approach / manipulation / remove
+    lag: int = 0                        # frames of fixed-lag smoothing behind ``smoothed``
+    smoothed: list[SmoothedFrame] = field(default_factory=list)  # one per frame when lag > 0
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers, of the three pooled (the paper's figure) and of all, frame
         rate, approach-end error and frames to find it, per-frame agreement of the recognised class with
-        discovery's (and of its kind: approach, manipulation or remove), and both class sequences."""
-        estimate = np.array([f.markers for f in self.frames])
-        distance = np.linalg.norm(estimate - self.truth_markers, axis=2)  # (T, M)
-        recognized = np.array([max(f.class_probabilities, key=f.class_probabilities.get) for f in self.frames])
-        known = self.truth_classes != UNKNOWN
+        discovery's (and of its kind: approach, manipulation or remove), and both class sequences; with a
+        lag, the same scores of the smoothed estimates under ``"smoothed"``."""
+        scores = self._scores(self.frames)
         errors, found = [], []
         for start, end, target in self.approach_ends:
             gap = np.linalg.norm(np.array([f.end_mean for f in self.frames[start:end]]) - target, axis=1)
@@ -78,11 +79,9 @@ class TrackResult:
             if gap[-1] < CONVERGED_M:  # found: the frames until it stays within CONVERGED_M to the end
                 outside = np.flatnonzero(gap >= CONVERGED_M)
                 found.append(int(outside[-1]) + 1 if outside.size else 0)
+        smoothed = {"smoothed": {"lag": self.lag, **self._scores(self.smoothed)}} if self.lag else {}
         return {
-            "rms_m": {name: float(np.sqrt(np.mean(distance[:, self.marker_names.index(name)] ** 2)))
-                      for name in SCORED_MARKERS},
-            "rms_m_all": float(np.sqrt(np.mean(distance**2))),
-            "rms_m_pooled": pooled_rms(distance, self.marker_names),
+            **{key: scores[key] for key in ("rms_m", "rms_m_all", "rms_m_pooled")},
             "hz": len(self.frames) / self.track_s,
             "particles": self.particles,
             "cues": ["markers"] if self.views == 0 else ["edges", "silhouette"] if self.silhouette else ["edges"],
@@ -92,12 +91,27 @@ class TrackResult:
             "frames_to_converge": float(np.median(found)) if found else None,
             "approaches_converged": len(found),
             "approaches": len(self.approach_ends),
+            **{key: scores[key] for key in ("frame_accuracy", "kind_accuracy", "recognized")},
+            "truth": self.truth_classes.tolist(),
+            **smoothed,
+        }
+
+    def _scores(self, estimates: list[TrackedFrame] | list[SmoothedFrame]) -> dict:
+        """RMS errors (m) and class agreement of one estimate per frame (each with ``markers`` and
+        ``class_probabilities``)."""
+        distance = np.linalg.norm(np.array([f.markers for f in estimates]) - self.truth_markers, axis=2)  # (T, M)
+        recognized = np.array([max(f.class_probabilities, key=f.class_probabilities.get) for f in estimates])
+        known = self.truth_classes != UNKNOWN
+        return {
+            "rms_m": {name: float(np.sqrt(np.mean(distance[:, self.marker_names.index(name)] ** 2)))
+                      for name in SCORED_MARKERS},
+            "rms_m_all": float(np.sqrt(np.mean(distance**2))),
+            "rms_m_pooled": pooled_rms(distance, self.marker_names),
             "frame_accuracy": float(np.mean(recognized[known] == self.truth_classes[known])) if known.any() else None,
             "kind_accuracy": float(np.mean([self.kinds.get(int(a), "unknown") == self.kinds.get(int(b)) for a, b in
                                             zip(recognized[known], self.truth_classes[known])]))
             if known.any() and self.kinds else None,
             "recognized": recognized.tolist(),
-            "truth": self.truth_classes.tolist(),
         }
 
 
@@ -118,7 +132,8 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                   more_cameras: tuple[Camera, ...] = (), clutter: bool = False, image_noise: float = 0.0,
                   silhouette: bool = True, object_cue: bool = True,
                   progress: Callable[[int, int], None] | None = None, pose_proposal: str = "offsets",
-                  posture: PostureModel | None = None, depth_sensor: DepthSensor | None = None) -> TrackResult:
+                  posture: PostureModel | None = None, depth_sensor: DepthSensor | None = None,
+                  lag: int = 0) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
@@ -128,14 +143,15 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     camera (taken once, before the episode, with its own noise); False scores edges alone (eq. 8).
     ``pose_proposal`` and ``posture``: how particles pose the arm (:class:`ActionTracker`). ``depth_sensor``
     adds each view's depth image as that sensor reads it (an RGB-D camera; its errors drawn from ``seed``,
-    apart from the image noise's) to the evidence."""
+    apart from the image noise's) to the evidence. ``lag``: frames of fixed-lag smoothing, scored beside the
+    filter's own estimates (:mod:`~hoap_actions.tracking.smoothing`)."""
     ep = _bridged_episode(models, demos, episode)
     views = (camera, *more_cameras)
     frames, kept, pictures = [], [], []
     with _Renderer(demos, episode, views, clutter, image_noise, seed, depth_sensor) as renderer:
         body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
-                                pose_proposal=pose_proposal, random_state=seed)
+                                pose_proposal=pose_proposal, random_state=seed, lag=lag)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             ObjectLocator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
@@ -148,7 +164,8 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                 progress(t + 1, ep.T)
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, observe.spent,
-                       body.torso_base, silhouette, kept, pictures, len(views), _kinds(models))
+                       body.torso_base, silhouette, kept, pictures, len(views), _kinds(models), lag,
+                       tracker.smoothed_frames(final=True) if lag else [])
 
 
 @dataclass
@@ -273,12 +290,13 @@ class _Observer:
 
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                           seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True,
-                          pose_proposal: str = "offsets", posture: PostureModel | None = None) -> TrackResult:
+                          pose_proposal: str = "offsets", posture: PostureModel | None = None,
+                          lag: int = 0) -> TrackResult:
     """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
     (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
     vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
-    gives the tracker the recorded object's centre, as the camera's block locator does; ``pose_proposal`` and
-    ``posture`` as for :func:`track_episode`."""
+    gives the tracker the recorded object's centre, as the camera's block locator does; ``pose_proposal``,
+    ``posture`` and ``lag`` as for :func:`track_episode`."""
     ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     try:
@@ -287,14 +305,15 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
         scene.close()
     body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
     tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, DEMONSTRATOR_CAMERA,
-                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed)
+                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed, lag=lag)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
     frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
     spent = time.perf_counter() - started
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
-                       body.torso_base, silhouette=False, views=0, kinds=_kinds(models))
+                       body.torso_base, silhouette=False, views=0, kinds=_kinds(models), lag=lag,
+                       smoothed=tracker.smoothed_frames(final=True) if lag else [])
 
 
 def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_effect: bool = False,
