@@ -278,8 +278,7 @@ def test_the_object_s_motion_favours_manipulations_when_it_moves_and_the_others_
                                 random_state=0)
         for position in path:
             tracker._see_object(position)
-        tracker.class_id = np.array([manipulation, approach])
-        return tracker._object_motion_log_likelihood()
+        return tracker._evidence.motion_log_likelihood(np.array([manipulation, approach]), np.zeros(2, bool))
 
     def expected(moved, scale):
         return np.log(0.9 * np.sqrt(2 / np.pi) / scale * np.exp(-0.5 * (moved / scale) ** 2) + 0.1 / 0.3) / 5
@@ -415,3 +414,41 @@ def test_surface_depths_are_the_limb_axes_distance_along_the_view_less_the_radiu
         for t in np.linspace(0.0, 1.0, body.points_per_side):
             expected.append((start + t * (end - start) - np.asarray(CAMERA.eye)) @ forward - capsule.radius)
     np.testing.assert_allclose(body.surface_depths(body.project(pose[None], CAMERA))[0], expected, atol=1e-12)
+
+
+def test_the_object_s_place_tells_the_pieces_of_a_push_apart(models):
+    """The place term: a push piece whose learned displacement carries the block to where it is seen scores
+    0, the opposite piece the quadratic misfit, capped at 5 cm; an approach keeps the block where its class
+    began; the term is 0 when the block is not seen or the term is off (the default)."""
+    from hoap_actions.tracking.object_evidence import OBJECT_PLACE_CAP_M, ObjectEvidence
+    from hoap_actions.tracking.tracking_models import TrackingModels
+
+    tracking = TrackingModels.from_action_models(models)
+    evidence = ObjectEvidence(tracking, place_m=0.02)
+    shifts = {cid: evidence.displacement[cid] for cid in evidence.manipulations}
+    short = [cid for cid in shifts if np.linalg.norm(shifts[cid]) < 0.04]  # pieces under 4 cm: within the cap
+    right = max(short, key=lambda cid: shifts[cid][0])  # the piece that pushes furthest along +x
+    left = min(short, key=lambda cid: shifts[cid][0])
+    approach = next(cid for cid, c in tracking.classes.items() if c.kind == "approach")
+    began = np.zeros((3, 3))
+    evidence.see(np.array([*shifts[right][:2], 0.025]))
+    resting = np.array([True, True, False])  # finished pieces: the whole displacement
+    term = evidence.place_log_likelihood(np.array([right, left, approach]), np.zeros(3), resting, began)
+    gap_left = np.sum((shifts[left][:2] - shifts[right][:2]) ** 2)
+    gap_still = np.sum(shifts[right][:2] ** 2)
+    misfit = np.minimum([gap_left, gap_still], OBJECT_PLACE_CAP_M**2)
+    np.testing.assert_allclose(term, [0.0, *(-misfit / (2 * 0.02**2))])
+    assert term[0] > term[1] and term[0] > term[2]
+    at_start = evidence.place_log_likelihood(np.array([right]), np.zeros(1), np.zeros(1, bool), began[:1])
+    np.testing.assert_allclose(at_start, term[2:])  # at its first state a piece has not moved the block yet
+    evidence.see(None)
+    np.testing.assert_array_equal(evidence.place_log_likelihood(np.array([right]), np.zeros(1), resting[:1],
+                                                                began[:1]), 0.0)
+    off = ObjectEvidence(tracking)
+    off.see(np.zeros(3))
+    np.testing.assert_array_equal(off.place_log_likelihood(np.array([right]), np.zeros(1), resting[:1], began[:1]),
+                                  0.0)
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    for bad in (0.0, -0.01, np.nan):
+        with pytest.raises(InvalidInputError, match="object_place_m"):
+            ActionTracker(models, body, CAMERA, object_place_m=bad)

@@ -57,6 +57,7 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.tracking.object_evidence import OBJECT_MOVING_M, OBJECT_STILL_M, ObjectEvidence
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
 from hoap_actions.tracking.smoothing import MAX_LAG, ParticleLineage, SmoothedFrame
@@ -80,10 +81,6 @@ SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
 LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
-# m, half-normal scale of a pushed block's displacement over OBJECT_MOTION_FRAMES (about 1 cm: validation)
-OBJECT_MOVING_M = 0.01
-# m, the same for a block at rest: the locator's jitter (median 0, 90 % below 3-4 mm on validation)
-OBJECT_STILL_M = 0.003
 # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
 OBJECT_END_SPREAD_M = 0.045
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
@@ -92,10 +89,6 @@ DEPTH_SIGMA_M = 0.02  # sigma of the depth term (m of truncated depth misfit; va
 DEPTH_TRUNCATION_M = 0.05  # a depth residual counts at most this much: an occluded or mismeasured point is not a pose
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
 FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
-OBJECT_MOTION_FRAMES = 5  # frames over which the object's seen displacement is measured
-# share of that displacement's density uniform over OBJECT_MOTION_RANGE_M (a mislocated block)
-OBJECT_OUTLIER_SHARE = 0.1
-OBJECT_MOTION_RANGE_M = 0.3  # m, the uniform's range: about the table region the block moves in
 MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
 # collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
@@ -164,8 +157,8 @@ class ActionTracker:
         the depth term's sigma (m), used when :meth:`step` is given depth images.
     object_still_m, object_moving_m
         scales of the object's seen displacement for classes that leave it at
-        rest and for manipulations (:meth:`_object_motion_log_likelihood`); ``object_still_m=None`` turns
-        the term off.
+        rest and for manipulations (:mod:`~hoap_actions.tracking.object_evidence`); ``object_still_m=None``
+        turns the term off.
     pose_proposal
         how a particle's pose strays from its state's mean (:mod:`~hoap_actions.tracking.poses`):
         ``"offsets"``, every marker coordinate on its own, or ``"hand"``, the hand shifted and the shoulder
@@ -176,6 +169,11 @@ class ActionTracker:
     lag
         frames of fixed-lag smoothing behind :meth:`smoothed_frames` (0: each frame's filtered estimate); the
         filter itself, and what :meth:`step` returns, do not depend on it.
+    object_place_m
+        scale (m) of the place term: the seen object against where each particle's class puts it
+        (:mod:`~hoap_actions.tracking.object_evidence`); None (the default) turns it off. For exact object
+        positions (motion capture, :func:`~hoap_actions.tracking.track_markers_episode` uses
+        :data:`~hoap_actions.tracking.object_evidence.OBJECT_PLACE_M`), not the camera's block locator.
 
     Attributes
     ----------
@@ -190,7 +188,7 @@ class ActionTracker:
                  end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
-                 depth_sigma_m: float = DEPTH_SIGMA_M, lag: int = 0) -> None:
+                 depth_sigma_m: float = DEPTH_SIGMA_M, lag: int = 0, object_place_m: float | None = None) -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
@@ -201,6 +199,8 @@ class ActionTracker:
         if not ((object_still_m is None or object_still_m > 0) and object_moving_m > 0):
             raise InvalidInputError(f"object_still_m must be > 0 or None (off) and object_moving_m > 0; got "
                                     f"{object_still_m!r}, {object_moving_m!r}")
+        if object_place_m is not None and not (np.isfinite(object_place_m) and object_place_m > 0):
+            raise InvalidInputError(f"object_place_m must be > 0 (m) or None (off); got {object_place_m!r}")
         if isinstance(lag, bool) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= MAX_LAG:
             raise InvalidInputError(f"lag must be an int in 0..{MAX_LAG} (frames); got {lag!r}")
         if tuple(body.marker_names) != tuple(models.marker_names):
@@ -219,12 +219,12 @@ class ActionTracker:
         self.silhouette_sigma = float(silhouette_sigma)
         self.depth_sigma_m = float(depth_sigma_m)
         self.lag = int(lag)
-        self.object_still_m = None if object_still_m is None else float(object_still_m)
-        self.object_moving_m = float(object_moving_m)
+        self._evidence = ObjectEvidence(models, object_still_m and float(object_still_m), float(object_moving_m),
+                                        object_place_m and float(object_place_m))
         self._rng = np.random.default_rng(random_state)
         self._object: np.ndarray | None = None
         self._ids = np.array(sorted(models.classes))
-        self._manipulations = np.array([cid for cid, c in models.classes.items() if c.kind == MANIPULATION])
+        self._manipulations = self._evidence.manipulations
         self._n_markers = len(models.marker_names)
         self._grammar_rows = self._successor_table()
         self.hand_from_object, self._object_end_spread_m = (
@@ -287,8 +287,9 @@ class ActionTracker:
         self.start = np.zeros((self.n_particles, 3))
         self.end = np.zeros((self.n_particles, 3))
         self.resting = np.zeros(self.n_particles, dtype=bool)
+        self.object_at = np.full((self.n_particles, 3), np.nan)
         self.weights = np.full(self.n_particles, 1.0 / self.n_particles)
-        self._object_track: list[np.ndarray | None] = []
+        self._evidence.reset()
         for cid in np.unique(self.class_id):
             chosen = np.flatnonzero(self.class_id == cid)
             effects = self._training_effects(cid, chosen.size)
@@ -344,32 +345,15 @@ class ActionTracker:
                 raise InvalidInputError(f"object_position must be a finite (3,) position in m or None; "
                                         f"got {object_position!r}")
         self._object = object_position
-        self._object_track = [*self._object_track[-OBJECT_MOTION_FRAMES:], object_position]
-
-    def _object_motion_log_likelihood(self) -> np.ndarray:
-        """Per particle, how well its class explains the object's seen displacement over the last
-        :data:`OBJECT_MOTION_FRAMES` frames: a manipulation moves the object, approach and remove leave it
-        still (discovery's own definition of the classes). Each a half-normal (``object_moving_m``,
-        ``object_still_m``) mixed with a share uniform over :data:`OBJECT_MOTION_RANGE_M` (a mislocated
-        block), divided by the window's length: the windows overlap, so each frame's motion is seen that many
-        times. 0 when the object was not seen at both ends or the term is off."""
-        now, before = self._object_track[-1], self._object_track[0]
-        if (self.object_still_m is None or now is None or before is None
-                or len(self._object_track) <= OBJECT_MOTION_FRAMES):
-            return np.zeros(self.n_particles)
-        moved = float(np.linalg.norm(now - before))
-
-        def density(scale: float) -> float:
-            half_normal = np.sqrt(2.0 / np.pi) / scale * np.exp(-0.5 * (moved / scale) ** 2)
-            return np.log((1.0 - OBJECT_OUTLIER_SHARE) * half_normal + OBJECT_OUTLIER_SHARE / OBJECT_MOTION_RANGE_M)
-
-        moving = np.isin(self.class_id, self._manipulations) & ~self.resting
-        return np.where(moving, density(self.object_moving_m), density(self.object_still_m)) / OBJECT_MOTION_FRAMES
+        self._evidence.see(object_position)
 
     def _weigh(self, markers: np.ndarray, likelihood: np.ndarray) -> TrackedFrame:
         """Weights times the frame's likelihood (log) and the object's motion term, the frame's summary,
         resampling when due; a frame that no particle explains starts the filter again from its prior."""
-        likelihood = likelihood + self._object_motion_log_likelihood()
+        if self._object is not None:  # where the object was when a particle's class began: here, if not seen before
+            self.object_at[~np.isfinite(self.object_at[:, 0])] = self._object
+        likelihood = (likelihood + self._evidence.motion_log_likelihood(self.class_id, self.resting)
+                      + self._evidence.place_log_likelihood(self.class_id, self.state, self.resting, self.object_at))
         reinitialised = not np.any(np.isfinite(likelihood))
         if reinitialised:  # nothing explains the image: start again from the prior, never NaN
             self._smoothed += self._lineage.flush(self.weights)
@@ -473,6 +457,9 @@ class ActionTracker:
                 end = start + effects[:, 3:] - effects[:, :3]
             else:
                 start, end = hands[rows], effects[:, 3:]
+            # the object when the new class begins: as seen, or moved as the class that ends moves it
+            self.object_at[chosen] = self._object if self._object is not None else \
+                self.object_at[chosen] + self._evidence.moved(self.class_id[chosen])
             self.class_id[chosen], self.state[chosen] = int(cid), 0.0
             self.speed[chosen] = np.exp(self._rng.normal(0.0, SPEED_SPREAD, chosen.size))
             self.start[chosen] = start
@@ -570,4 +557,5 @@ class ActionTracker:
         self.class_id, self.state, self.speed = self.class_id[index], self.state[index], self.speed[index]
         self.offset = self.offset[index]
         self.start, self.end, self.resting = self.start[index], self.end[index], self.resting[index]
+        self.object_at = self.object_at[index]
         self.weights = np.full(self.n_particles, 1.0 / self.n_particles)

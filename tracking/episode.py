@@ -26,6 +26,7 @@ from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame
+from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.smoothing import SmoothedFrame
 from hoap_actions.tracking.tracking_models import TrackingModels
@@ -291,12 +292,13 @@ class _Observer:
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                           seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True,
                           pose_proposal: str = "offsets", posture: PostureModel | None = None,
-                          lag: int = 0) -> TrackResult:
+                          lag: int = 0, object_place_m: float | None = OBJECT_PLACE_M) -> TrackResult:
     """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
     (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
     vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
-    gives the tracker the recorded object's centre, as the camera's block locator does; ``pose_proposal``,
-    ``posture`` and ``lag`` as for :func:`track_episode`."""
+    gives the tracker the recorded object's centre, as the camera's block locator does, and ``object_place_m``
+    scores its place against each particle's class (None: its motion only, as from the camera);
+    ``pose_proposal``, ``posture`` and ``lag`` as for :func:`track_episode`."""
     ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     try:
@@ -305,7 +307,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
         scene.close()
     body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
     tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, DEMONSTRATOR_CAMERA,
-                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed, lag=lag)
+                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed, lag=lag,
+                            object_place_m=object_place_m if object_cue else None)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
     frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
