@@ -71,14 +71,15 @@ class TrackingModels:
     @classmethod
     def from_action_models(cls, models: ActionModels, posture: PostureModel | None = None) -> TrackingModels:
         """The tracker's view of fitted action models, with ``posture`` if given (else the models' own posture
-        model, ``posture_``, when they carry one). Approach and remove are posed by the models' pose classes
-        (``pose_classes_``) when they have them; models without (learned before them, or without
-        ``pose_mean_model``) track with their recognition classes, and a warning says so."""
+        model, ``posture_``, when they carry one). Classes are posed by the models' pose classes
+        (``pose_classes_``: every class, or approach and remove in models learned before manipulations were
+        posed) when they have them; models without (learned before them, or without ``pose_mean_model``) track
+        with their recognition classes, and a warning says so."""
         check_is_fitted(models)
         posture = posture if posture is not None else getattr(models, "posture_", None)
         if models.pose_mean_model is None:  # learned without them, or loaded from a directory made before them
             warnings.warn("these action models have no pose classes (learned without pose_mean_model, or before "
-                          "models kept them): the tracker poses approach and remove with their recognition classes; "
+                          "models kept them): the tracker poses the arm with their recognition classes; "
                           "learn them with pose_mean_model='tps' for the tracker's figures", MissingModelPartWarning,
                           stacklevel=2)
         return cls({**models.classes_, **models.pose_classes_}, models.grammar_, tuple(models.marker_names_),

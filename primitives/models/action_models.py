@@ -134,9 +134,9 @@ class ActionModels(ActionDecoding, Estimator):
         fitted as if performed that many times as long (resampled in time), so that the chains accept a
         demonstrator slower or faster than those seen. ``()`` (default): none.
     pose_mean_model
-        ``"tps"`` or ``"linear"``: also fit the approach and remove classes again with that mean model, the
-        classes the tracker poses the arm with (``pose_classes_``); recognition and synthesis keep
-        ``classes_``. ``None`` (default): none.
+        ``"tps"`` or ``"linear"``: also fit every class again with that mean model, the classes the tracker
+        poses the arm with (``pose_classes_``); recognition and synthesis keep ``classes_``. ``None``
+        (default): none.
     progress
         show a bar over the class fits when stderr is a terminal (not saved with the models).
 
@@ -158,8 +158,9 @@ class ActionModels(ActionDecoding, Estimator):
         (3,) the object's centre in the hand's frame while the hand moves it (m; ``None`` when learned
         without object poses).
     pose_classes_
-        dict class id -> :class:`ClassModel` of the approach and remove classes refitted with
-        ``pose_mean_model`` (the same segments, states and effects; empty without it).
+        dict class id -> :class:`ClassModel` of every class refitted with ``pose_mean_model`` (the same
+        segments, states and effects; empty without it; models learned before 2026-12-06's third session
+        hold approach and remove only, and the tracker poses the others with ``classes_``).
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
@@ -333,14 +334,13 @@ class ActionModels(ActionDecoding, Estimator):
 
     def _fit_pose_classes(self, inputs: list[np.ndarray], stretched: dict[float, list[np.ndarray]]
                           ) -> dict[int, ClassModel]:
-        """The approach and remove classes refitted with ``pose_mean_model``: the arm's pose on the way to and
-        from the object bends with where it goes more than a linear mean follows (validation in
+        """Every class refitted with ``pose_mean_model``: the arm's pose on the way to, at and from the object
+        bends with where the object is more than a linear mean follows (validation in
         ``docs/experiments/tracking.md``)."""
         if self.pose_mean_model is None:
             return {}
         refit = self._with_mean_model()
-        return {int(c.primitive_id): refit._fit_class(c, inputs, stretched, None)
-                for c in self.discovery_.classes_ if c.kind != MANIPULATION}
+        return {int(c.primitive_id): refit._fit_class(c, inputs, stretched, None) for c in self.discovery_.classes_}
 
     def _with_mean_model(self) -> ActionModels:
         """An unfitted copy of these hyper-parameters with ``mean_model = pose_mean_model``."""
