@@ -41,9 +41,11 @@ limbs' axis points off the person plus the share of the person (outside the trun
 uncovered, over ``2 sigma_s^2``. When the object is seen (its position each frame), its displacement
 over the last few frames is evidence of the class: a manipulation moves it, approach and remove do not
 (discovery's own definition); without it a hand hovering at the block reads as a manipulation and the
-particles stay in one while the arm lets go. Weights carry over between frames; systematic resampling when
-the effective sample size falls below half the particles (resampling every frame collapses the end
-estimates before the arm has shown where it goes).
+particles stay in one while the arm lets go. With ``object_place_m`` its place is scored too, against where
+each particle's class puts it (:mod:`~hoap_actions.tracking.object_evidence`). Weights carry over between
+frames; systematic resampling when the effective sample size falls below half the particles (resampling every
+frame collapses the end estimates before the arm has shown where it goes). With ``lag``, each frame is also read
+again that many frames later through the particles' lineage (:mod:`~hoap_actions.tracking.smoothing`).
 """
 
 from __future__ import annotations
