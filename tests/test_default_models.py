@@ -42,7 +42,9 @@ def test_shipped_models_were_discovered_with_the_library_s_defaults():
 def test_shipped_models_load_and_are_small():
     models = load_default_models()
     assert len(models.classes_) == json.loads((default_models_path() / PROVENANCE).read_text())["classes"]
-    assert sum(p.stat().st_size for p in default_models_path().iterdir()) < 8e6  # bytes: a few MB in the wheel
+    # bytes in the wheel: 6 MB of recognition models and discovery, 15 MB of the tracker's thin-plate pose classes
+    # (40 kernel weights per state and marker coordinate, for every class)
+    assert sum(p.stat().st_size for p in default_models_path().iterdir()) < 24e6
 
 
 @pytest.fixture(scope="module")
