@@ -107,3 +107,7 @@ def test_lag_bad_input(models):
     for bad in (-1, MAX_LAG + 1, 2.5, True):
         with pytest.raises(InvalidInputError, match="lag"):
             ActionTracker(models, body, CAMERA, lag=bad)
+    plain = ActionTracker(models, body, CAMERA, n_particles=5)  # no lag: no lineage kept, nothing to hand out
+    plain.step_markers(np.tile(TORSO_BASE, (6, 1)))
+    with pytest.raises(InvalidInputError, match="no lineage"):
+        plain.smoothed_frames(final=True)

@@ -169,8 +169,8 @@ class ActionTracker:
     random_state
         seed of the filter's draws.
     lag
-        frames of fixed-lag smoothing behind :meth:`smoothed_frames` (0: each frame's filtered estimate); the
-        filter itself, and what :meth:`step` returns, do not depend on it.
+        frames of fixed-lag smoothing behind :meth:`smoothed_frames` (0: each frame's filtered estimate; None,
+        the default: no lineage is kept); the filter itself, and what :meth:`step` returns, do not depend on it.
     object_place_m
         scale (m) of the place term: the seen object against where each particle's class puts it
         (:mod:`~hoap_actions.tracking.object_evidence`); None (the default) turns it off. For exact object
@@ -190,7 +190,8 @@ class ActionTracker:
                  end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
-                 depth_sigma_m: float = DEPTH_SIGMA_M, lag: int = 0, object_place_m: float | None = None) -> None:
+                 depth_sigma_m: float = DEPTH_SIGMA_M, lag: int | None = None,
+                 object_place_m: float | None = None) -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
@@ -203,8 +204,9 @@ class ActionTracker:
                                     f"{object_still_m!r}, {object_moving_m!r}")
         if object_place_m is not None and not (np.isfinite(object_place_m) and object_place_m > 0):
             raise InvalidInputError(f"object_place_m must be > 0 (m) or None (off); got {object_place_m!r}")
-        if isinstance(lag, bool) or not isinstance(lag, (int, np.integer)) or not 0 <= lag <= MAX_LAG:
-            raise InvalidInputError(f"lag must be an int in 0..{MAX_LAG} (frames); got {lag!r}")
+        if lag is not None and (isinstance(lag, bool) or not isinstance(lag, (int, np.integer))
+                                or not 0 <= lag <= MAX_LAG):
+            raise InvalidInputError(f"lag must be None or an int in 0..{MAX_LAG} (frames); got {lag!r}")
         if tuple(body.marker_names) != tuple(models.marker_names):
             raise InvalidInputError(f"the body model's markers {list(body.marker_names)} are not the models' "
                                     f"{list(models.marker_names)}")
@@ -220,7 +222,7 @@ class ActionTracker:
         self.end_diffusion_m = float(end_diffusion_m)
         self.silhouette_sigma = float(silhouette_sigma)
         self.depth_sigma_m = float(depth_sigma_m)
-        self.lag = int(lag)
+        self.lag = None if lag is None else int(lag)
         self._evidence = ObjectEvidence(models, object_still_m and float(object_still_m), float(object_moving_m),
                                         object_place_m and float(object_place_m))
         self._rng = np.random.default_rng(random_state)
@@ -263,7 +265,7 @@ class ActionTracker:
 
     def reset(self) -> None:
         """Start a new track: particles drawn from the prior (:meth:`_draw_prior`), no frame seen."""
-        self._lineage = ParticleLineage(self.lag)
+        self._lineage = None if self.lag is None else ParticleLineage(self.lag)
         self._smoothed: list[SmoothedFrame] = []
         self._frames_seen = 0
         self._draw_prior()
@@ -272,6 +274,8 @@ class ActionTracker:
         """The fixed-lag estimates (:mod:`~hoap_actions.tracking.smoothing`) ready since the last call: frame
         ``t``'s once frame ``t + lag`` was weighed; ``final`` (the track is over) reads the frames still
         waiting with the last frame's weights. With ``lag=0``, each frame's filtered estimate."""
+        if self._lineage is None:
+            raise InvalidInputError(f"this tracker keeps no lineage to smooth with: make it with lag=0..{MAX_LAG}")
         if final:
             self._smoothed += self._lineage.flush(self.weights)
         ready, self._smoothed = self._smoothed, []
@@ -358,7 +362,8 @@ class ActionTracker:
                       + self._evidence.place_log_likelihood(self.class_id, self.state, self.resting, self.object_at))
         reinitialised = not np.any(np.isfinite(likelihood))
         if reinitialised:  # nothing explains the image: start again from the prior, never NaN
-            self._smoothed += self._lineage.flush(self.weights)
+            if self._lineage is not None:
+                self._smoothed += self._lineage.flush(self.weights)
             self._draw_prior()
             markers = self.markers()
             likelihood = np.zeros(self.n_particles)
@@ -368,7 +373,8 @@ class ActionTracker:
         weights /= weights.sum()
         frame = self._summary(weights, markers, float(likelihood.max()), reinitialised)
         self.weights = weights
-        self._smoothed += self._lineage.push(self._frames_seen, markers, self.class_id, weights)
+        if self._lineage is not None:
+            self._smoothed += self._lineage.push(self._frames_seen, markers, self.class_id, weights)
         self._frames_seen += 1
         if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
             self._resample(weights)
@@ -555,7 +561,8 @@ class ActionTracker:
         """Systematic resampling: one uniform draw, N evenly spaced pointers into the cumulative weights."""
         positions = (self._rng.random() + np.arange(self.n_particles)) / self.n_particles
         index = np.minimum(np.searchsorted(np.cumsum(weights), positions), self.n_particles - 1)
-        self._lineage.resampled(index)
+        if self._lineage is not None:
+            self._lineage.resampled(index)
         self.class_id, self.state, self.speed = self.class_id[index], self.state[index], self.speed[index]
         self.offset = self.offset[index]
         self.start, self.end, self.resting = self.start[index], self.end[index], self.resting[index]

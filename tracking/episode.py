@@ -152,7 +152,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     with _Renderer(demos, episode, views, clutter, image_noise, seed, depth_sensor) as renderer:
         body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
-                                pose_proposal=pose_proposal, random_state=seed, lag=lag)
+                                pose_proposal=pose_proposal, random_state=seed, lag=lag or None)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             ObjectLocator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
@@ -307,8 +307,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
         scene.close()
     body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
     tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, DEMONSTRATOR_CAMERA,
-                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed, lag=lag,
-                            object_place_m=object_place_m if object_cue else None)
+                            n_particles=particles, pose_proposal=pose_proposal, random_state=seed,
+                            lag=lag or None, object_place_m=object_place_m if object_cue else None)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
     frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]

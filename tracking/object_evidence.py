@@ -53,6 +53,8 @@ class ObjectEvidence:
             effects = model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis)
             shift = np.mean(effects[:, 3:] - effects[:, :3], axis=0) * (model.kind == MANIPULATION)
             self.displacement[cid] = shift
+            if place_m is None:  # the hand's progress serves the place term only
+                continue
             k = model.phmm.n_states
             hand = mean_poses(model, np.arange(k, dtype=float), np.tile(model.centre, (k, 1)),
                               len(models.marker_names)).reshape(k, -1, 3)[:, models.hand_marker, :2]
