@@ -158,13 +158,20 @@ def speed(models, demos, episode) -> dict:
 
 
 def summarise(per_recording: dict) -> dict:
-    """Mean and 95 % interval over the recordings of each pooled figure."""
+    """Mean and 95 % interval over the recordings of each pooled figure; the approaches whose estimated end
+    came within 2 cm, over all recordings, with their Wilson interval."""
+    from hoap_actions.apps.episodes import wilson_interval
+
     pooled = [r["pooled"] for r in per_recording.values()]
     summary = {key: spread([p[key] for p in pooled]) for key in
                ("rms_m_all", "rms_m_pooled", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
                 "baseline_frame_accuracy", "hz")}
     for marker in pooled[0]["rms_m"]:
         summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
+    found, approaches = sum(p["approaches_converged"] for p in pooled), sum(p["approaches"] for p in pooled)
+    summary["approach_end_within_2cm"] = {"found": found, "approaches": approaches,
+                                          "share": found / approaches if approaches else None,
+                                          "wilson95": list(wilson_interval(found, approaches)) if approaches else None}
     if "smoothed" in pooled[0]:  # the fixed-lag estimates of the same filter runs
         for key in ("rms_m_all", "rms_m_pooled", "frame_accuracy"):
             summary[f"smoothed_{key}"] = spread([p["smoothed"][key] for p in pooled])
@@ -216,7 +223,10 @@ def main(argv: list[str] | None = None) -> dict:
     for title, figures in summaries.items():
         print(title)
         for key, s in figures.items():
-            print(f"{key:>28}: mean {s['mean']:.4g} [{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]")
+            if "mean" in s:
+                print(f"{key:>28}: mean {s['mean']:.4g} [{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]")
+            else:
+                print(f"{key:>28}: {s}")
     result["environment"] = {**numeric_environment(None), "runtime_s": round(time.perf_counter() - started, 1)}
     write_json(args.output, result)
     return result

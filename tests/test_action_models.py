@@ -561,3 +561,30 @@ def test_learn_checks_its_hyper_parameters_before_reading_any_recording(tmp_path
 
     with pytest.raises(InvalidInputError, match="pose_mean_model must be None, 'linear' or 'tps'"):
         learn([tmp_path / "not-recorded-yet.h5"], pose_mean_model="cubic")
+
+
+def test_the_approach_ends_are_where_each_approach_left_the_hand_by_its_object(small, with_actions, tmp_path):
+    """Read back from discovery's segmentations (another walk than the fit's, over demonstrations, not classes):
+    each approach piece's last frame gives the hand marker's x and y less the object's, and its height."""
+    demos, discovery, plain, _ = small
+    kinds = {c.primitive_id: c.kind for c in discovery.classes_}
+    expected = []
+    for demo, segmentation in enumerate(discovery.segmentations_):
+        for pid, _, end, *_ in segmentation:
+            if kinds[pid] == "approach":
+                hand, block = demos[demo].H[end - 1, discovery.hand_marker], demos[demo].O[end - 1, :3]
+                expected.append([hand[0] - block[0], hand[1] - block[1], hand[2]])
+    ends = with_actions.approach_ends_
+    assert ends.shape == (len(expected), 3) and len(expected) > 0
+    np.testing.assert_allclose(np.array(sorted(map(tuple, ends))), np.array(sorted(map(tuple, expected))))
+    assert plain.approach_ends_ is None  # learned without object poses
+    path = tmp_path / "models"
+    with_actions.save(path)
+    np.testing.assert_array_equal(ActionModels.load(path).approach_ends_, ends)
+    for wrong, message in (([[0.0, float("nan"), 0.1]], "entry approach_ends must be"),
+                           ([[0.0, 0.1]], "entry approach_ends must be"), ([], "non-empty list")):
+        edit_manifest(path, lambda m, wrong=wrong: m.update(approach_ends=wrong))
+        with pytest.raises(DataFileError, match=message):
+            ActionModels.load(path)
+    edit_manifest(path, lambda m: (m.update(format_version=4), m.pop("approach_ends")))
+    assert ActionModels.load(path).approach_ends_ is None

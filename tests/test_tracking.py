@@ -452,3 +452,65 @@ def test_the_object_s_place_tells_the_pieces_of_a_push_apart(models):
     for bad in (0.0, -0.01, np.nan):
         with pytest.raises(InvalidInputError, match="object_place_m"):
             ActionTracker(models, body, CAMERA, object_place_m=bad)
+
+
+def test_an_approach_goal_is_drawn_from_a_training_approach_s_end_at_the_seen_block(models):
+    """With the models' approach ends, a goal drawn at the seen block is one of them moved to it (x, y from the
+    block, the height as it was) with APPROACH_END_JITTER_M of jitter, each as often as it was trained; without
+    them, the mean offset with the broad spread. Ends that are not finite (n, 3) rows are refused, and models
+    learned with object poses but without them warn."""
+    import copy
+    import dataclasses
+
+    from hoap_actions.errors import MissingModelPartWarning
+    from hoap_actions.tracking.action_tracker import APPROACH_END_JITTER_M, OBJECT_END_SPREAD_M
+    from hoap_actions.tracking.tracking_models import TrackingModels
+
+    tracking = TrackingModels.from_action_models(models)
+    ends = np.array([[0.03, -0.02, 0.08], [-0.06, 0.0, 0.07], [-0.06, 0.0, 0.07]])
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(dataclasses.replace(tracking, approach_ends=ends), body, CAMERA, random_state=0)
+    tracker._object = np.array([0.1, 0.2, 0.025])
+    drawn = tracker._end_at_object(6000)
+    centres = np.array([[0.13, 0.18, 0.08], [0.04, 0.2, 0.07]])
+    nearest = np.argmin(np.linalg.norm(drawn[:, None] - centres[None], axis=2), axis=1)
+    assert abs(np.mean(nearest == 1) - 2 / 3) < 0.03  # the second end was trained twice
+    for k, centre in enumerate(centres):
+        mine = drawn[nearest == k]
+        np.testing.assert_allclose(mine.mean(axis=0), centre, atol=0.0005)
+        np.testing.assert_allclose(mine.std(axis=0), APPROACH_END_JITTER_M, rtol=0.1)
+    broad = ActionTracker(dataclasses.replace(tracking, approach_ends=None), body, CAMERA, random_state=0)
+    broad._object = tracker._object
+    np.testing.assert_allclose(broad._end_at_object(6000).std(axis=0), OBJECT_END_SPREAD_M, rtol=0.1)
+    for wrong in (ends[:, :2], np.empty((0, 3)), np.where(ends > 0.05, np.nan, ends)):
+        with pytest.raises(InvalidInputError, match="approach_ends"):
+            dataclasses.replace(tracking, approach_ends=wrong)
+    older = copy.copy(models)
+    older.approach_ends_ = None
+    with pytest.warns(MissingModelPartWarning, match="no approach ends"):
+        assert TrackingModels.from_action_models(older).approach_ends is None
+
+
+def test_an_approach_s_end_is_read_from_the_particles_still_in_an_approach():
+    """The approach-end figure reads the approach classes' own end (weighted by their probabilities), not the
+    mean over particles that began a manipulation and estimate where the block goes; with no particle in an
+    approach, the mean over all."""
+    from hoap_actions.tracking.action_tracker import TrackedFrame
+    from hoap_actions.tracking.episode import TrackResult
+
+    target = np.array([0.1, 0.0, 0.08])
+    reach, block = target + [0.01, 0.0, 0.0], np.array([0.3, 0.1, 0.025])
+
+    def frame(p_approach: float) -> TrackedFrame:
+        ends = {0: reach, 7: block} if p_approach > 0 else {7: block}
+        probabilities = {0: p_approach, 7: 1.0 - p_approach} if p_approach > 0 else {7: 1.0}
+        return TrackedFrame(0, 0, np.zeros(6), probabilities, p_approach * reach + (1 - p_approach) * block,
+                            np.zeros(3), 0.0, np.zeros((6, 3)), 0.0, class_ends=ends)
+
+    for p_approach, error in ((1.0, 0.01), (0.3, 0.01), (0.0, np.linalg.norm(block - target))):
+        result = TrackResult([frame(1.0), frame(p_approach)], np.zeros((2, 6, 3)), np.array([0, 0]),
+                             [(0, 2, target)], MARKERS, 10, 1.0, TORSO_BASE, True,
+                             kinds={0: "approach", 7: "manipulation"})
+        summary = result.summary()
+        assert summary["phi_error_m"] == pytest.approx(error)
+        assert summary["approaches_converged"] == (1 if error < 0.02 else 0)

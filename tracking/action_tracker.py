@@ -19,13 +19,16 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
   effects of approach and remove are the hand's start and end, a manipulation's the object's: the
   hand's end becomes the object's start at the height the two classes' training effects differ by.
 * The end moves by Brownian diffusion that cools as ``s`` advances (early frames say little about
-  where the hand is going), inside the range of its class's training ends widened by 5 cm.
+  where the hand is going), inside the range of its class's training ends widened by 5 cm; an approach's
+  end drawn at the seen block from the training ends (below) moves by a millimetre a frame at most.
 * A small share of particles (``REDRAW_SHARE`` per frame) draws its end afresh from its class's
   training effects: the early frames of a reach say little about its goal, and once the particles
   have agreed on a wrong one, diffusion alone cannot carry them across the table to the right one.
 * When the block is seen (:class:`~hoap_actions.vision.objects.ObjectLocator`), an
-  approach's redrawn end lies at the block, offset as the hand's training ends are from the objects'
-  training starts, and a manipulation starts at the block: the image proposes where the arm is going.
+  approach's redrawn end lies at the block, where a training approach ended relative to its object (the
+  models' ``approach_ends``: each task has its own place, a few millimetres wide; without them, the mean
+  offset with a spread of centimetres), and a manipulation starts at the block: the image proposes where
+  the arm is going.
 * Each particle's pose strays from the state's mean by a pose state that drifts within the state's
   learned spread (the PHMM's observation density): an offset of every marker coordinate (``"offsets"``),
   or a shift of the hand with the shoulder and elbow generated from it (``"hand"``;
@@ -52,7 +55,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -85,6 +88,11 @@ LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain'
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
 OBJECT_END_SPREAD_M = 0.045
+# m, jitter of an end drawn from a training approach's end at the seen block (validation: 0.005 / 0.01 / 0.02 m)
+APPROACH_END_JITTER_M = 0.005
+# m per frame, the end's step of an approach whose goals are drawn at the seen block from the training ends: they
+# are drawn within millimetres of a task's place, and a wider walk takes them off it (validation: 0.005 / 0.001)
+APPROACH_AT_BLOCK_DIFFUSION_M = 0.001
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 DEPTH_SIGMA_M = 0.02  # sigma of the depth term (m of truncated depth misfit; validation recording)
@@ -119,7 +127,9 @@ class TrackedFrame:
     """What the tracker believes after one image.
 
     ``class_id``, ``state`` and ``phi`` (6,) of the most probable particle; ``class_probabilities``
-    P(a) marginalised over phi and s; ``end_mean`` / ``end_std`` (3,) of phi's estimated end (m);
+    P(a) marginalised over phi and s; ``end_mean`` / ``end_std`` (3,) of phi's estimated end (m) over all
+    particles, whatever their class; ``class_ends`` each class's estimate of its end (3,) (m, its
+    particles' weighted mean: an approach's goal read apart from the manipulations some particles began);
     ``entropy`` (nats) of P(a, s); ``markers`` (M, 3) the weighted mean pose; ``log_likelihood`` of the
     best particle; ``reinitialised`` when no particle could explain the image.
     """
@@ -134,6 +144,7 @@ class TrackedFrame:
     markers: np.ndarray
     log_likelihood: float
     reinitialised: bool = False
+    class_ends: Mapping[int, np.ndarray] = field(default_factory=dict)
 
 
 class ActionTracker:
@@ -234,6 +245,9 @@ class ActionTracker:
         self.hand_from_object, self._object_end_spread_m = (
             (np.asarray(models.object_end[0], float), float(models.object_end[1])) if models.object_end is not None
             else (self._hand_offset_from_object(), OBJECT_END_SPREAD_M))
+        self._approach_ends = models.approach_ends if models.object_end is None else None
+        if self._approach_ends is not None:
+            self.hand_from_object = np.asarray(self._approach_ends, float).mean(axis=0)
         self._end_box = {}
         for cid, model in models.classes.items():
             ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
@@ -415,7 +429,9 @@ class ActionTracker:
             self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
             self.offset[chosen] = self.poses.drift(cid, s, self.offset[chosen], self._rng)
             cooling = END_DIFFUSION_FLOOR + (1.0 - END_DIFFUSION_FLOOR) * (1.0 - s / max(k - 1, 1))
-            step = self._rng.normal(0.0, 1.0, (chosen.size, 3)) * (self.end_diffusion_m * cooling)[:, None]
+            at_block = model.kind == APPROACH and self._object is not None and self._approach_ends is not None
+            diffusion = min(self.end_diffusion_m, APPROACH_AT_BLOCK_DIFFUSION_M) if at_block else self.end_diffusion_m
+            step = self._rng.normal(0.0, 1.0, (chosen.size, 3)) * (diffusion * cooling)[:, None]
             self.end[chosen] = np.clip(self.end[chosen] + step, *self._end_box[cid])
             redraw = chosen[self._rng.random(chosen.size) < REDRAW_SHARE]
             if redraw.size and model.kind == APPROACH and self._object is not None:
@@ -432,7 +448,12 @@ class ActionTracker:
             self._switch(np.concatenate(leaving), np.concatenate(successors))
 
     def _end_at_object(self, n: int) -> np.ndarray:
-        """``n`` approach ends drawn around the hand's learned place at the seen block."""
+        """``n`` approach ends drawn around the hand's learned places at the seen block: training approaches'
+        ends moved to it (when the models carry them), else their mean offset with a broad spread."""
+        if self._approach_ends is not None:
+            ends = self._approach_ends[self._rng.integers(0, len(self._approach_ends), n)]
+            centre = np.column_stack([self._object[:2] + ends[:, :2], ends[:, 2]])
+            return centre + self._rng.normal(0.0, APPROACH_END_JITTER_M, (n, 3))
         centre = np.array([*(self._object[:2] + self.hand_from_object[:2]), self.hand_from_object[2]])
         return centre + self._rng.normal(0.0, self._object_end_spread_m, (n, 3))
 
@@ -549,13 +570,16 @@ class ActionTracker:
         p = np.bincount(of_pair.ravel(), weights)
         p = p[p > 0]
         mean = np.sum(weights[:, None] * self.end, axis=0)
+        class_weight = np.bincount(of_class, weights)
+        class_ends = np.stack([np.bincount(of_class, weights * self.end[:, k]) for k in range(3)], axis=1)
+        class_ends = {int(c): class_ends[i] / class_weight[i] for i, c in enumerate(classes) if class_weight[i] > 0}
         std = np.sqrt(np.maximum(np.sum(weights[:, None] * (self.end - mean) ** 2, axis=0), 0.0))
         return TrackedFrame(
             class_id=int(self.class_id[best]), state=int(self.state[best]),
             phi=np.r_[self.start[best], self.end[best]], class_probabilities=probabilities, end_mean=mean,
             end_std=std, entropy=max(0.0, float(-np.sum(p * np.log(p)))),
             markers=np.sum(weights[:, None, None] * markers, axis=0),
-            log_likelihood=best_ll, reinitialised=reinitialised)
+            log_likelihood=best_ll, reinitialised=reinitialised, class_ends=class_ends)
 
     def _resample(self, weights: np.ndarray) -> None:
         """Systematic resampling: one uniform draw, N evenly spaced pointers into the cumulative weights."""

@@ -20,7 +20,7 @@ from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
 from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.discovery.estimator import UNKNOWN, effect_track
+from hoap_actions.primitives.discovery.estimator import APPROACH, UNKNOWN, effect_track
 from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
@@ -75,7 +75,7 @@ class TrackResult:
         scores = self._scores(self.frames)
         errors, found = [], []
         for start, end, target in self.approach_ends:
-            gap = np.linalg.norm(np.array([f.end_mean for f in self.frames[start:end]]) - target, axis=1)
+            gap = np.linalg.norm(np.array([self._approach_end(f) for f in self.frames[start:end]]) - target, axis=1)
             errors.append(float(gap[-1]))
             if gap[-1] < CONVERGED_M:  # found: the frames until it stays within CONVERGED_M to the end
                 outside = np.flatnonzero(gap >= CONVERGED_M)
@@ -96,6 +96,17 @@ class TrackResult:
             "truth": self.truth_classes.tolist(),
             **smoothed,
         }
+
+    def _approach_end(self, frame: TrackedFrame) -> np.ndarray:
+        """The approach's goal as a frame estimates it: its approach classes' ends, weighted by their
+        probabilities (the particles that began a manipulation estimate where the object goes, not where
+        the hand reached); all particles' end when none is in an approach."""
+        shares = {c: frame.class_probabilities.get(c, 0.0) for c, end in frame.class_ends.items()
+                  if self.kinds.get(c) == APPROACH}
+        total = sum(shares.values())
+        if total <= 0:
+            return frame.end_mean
+        return sum(share * frame.class_ends[c] for c, share in shares.items()) / total
 
     def _scores(self, estimates: list[TrackedFrame] | list[SmoothedFrame]) -> dict:
         """RMS errors (m) and class agreement of one estimate per frame (each with ``markers`` and

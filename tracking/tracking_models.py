@@ -37,7 +37,10 @@ class TrackingModels:
 
     ``object_end``: where an approach ends relative to the block it reaches, when the models know it: an offset
     (3,) m (x, y from the block; z the end's height) and a spread (m). None: the tracker learns the offset from
-    the classes' training effects (:attr:`ActionTracker.hand_from_object`) and uses its default spread."""
+    the classes' training effects (:attr:`ActionTracker.hand_from_object`) and uses its default spread.
+    ``approach_ends``: where the training approaches ended, ``(n, 3)`` (the hand's x and y from the object's, its
+    height; ``ActionModels.approach_ends_``), from which the tracker draws approach goals around a seen block
+    when ``object_end`` is not given."""
 
     classes: Mapping[int, ClassModel]
     grammar: ActionGrammar
@@ -45,6 +48,7 @@ class TrackingModels:
     hand_marker: int
     posture: PostureModel | None = None
     object_end: tuple[np.ndarray, float] | None = None
+    approach_ends: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not self.classes:
@@ -62,6 +66,11 @@ class TrackingModels:
             if np.shape(offset) != (3,) or not np.all(np.isfinite(offset)) or not (np.isfinite(spread) and spread > 0):
                 raise InvalidInputError(f"object_end must be an offset (3,) m and a spread > 0 m; got "
                                         f"{self.object_end!r}")
+        if self.approach_ends is not None and (np.ndim(self.approach_ends) != 2 or np.shape(self.approach_ends)[1] != 3
+                                               or len(self.approach_ends) == 0
+                                               or not np.all(np.isfinite(self.approach_ends))):
+            raise InvalidInputError(f"approach_ends must be finite (n, 3) rows (m), n >= 1; got shape "
+                                    f"{np.shape(self.approach_ends)}")
         if self.posture is not None:
             check_is_fitted(self.posture)
             if tuple(self.marker_names) != MARKER_NAMES:
@@ -74,7 +83,8 @@ class TrackingModels:
         model, ``posture_``, when they carry one). Classes are posed by the models' pose classes
         (``pose_classes_``: every class, or approach and remove in models learned before manipulations were
         posed) when they have them; models without (learned before them, or without ``pose_mean_model``) track
-        with their recognition classes, and a warning says so."""
+        with their recognition classes, and a warning says so. The approaches' training ends come along
+        (``approach_ends_``); models learned with object poses before they were kept warn that they lack them."""
         check_is_fitted(models)
         posture = posture if posture is not None else getattr(models, "posture_", None)
         if models.pose_mean_model is None:  # learned without them, or loaded from a directory made before them
@@ -82,8 +92,13 @@ class TrackingModels:
                           "models kept them): the tracker poses the arm with their recognition classes; "
                           "learn them with pose_mean_model='tps' for the tracker's figures", MissingModelPartWarning,
                           stacklevel=2)
+        ends = getattr(models, "approach_ends_", None)
+        if ends is None and models.actions_:  # learned with object poses, before models kept where approaches end
+            warnings.warn("these action models have no approach ends (learned before models kept them): the tracker "
+                          "draws approach goals around the seen block with one spread; learn them again for the "
+                          "tracker's figures", MissingModelPartWarning, stacklevel=2)
         return cls({**models.classes_, **models.pose_classes_}, models.grammar_, tuple(models.marker_names_),
-                   int(models.discovery_.hand_marker), posture)
+                   int(models.discovery_.hand_marker), posture, approach_ends=ends)
 
 
 def posture_from_recording(demos: Demonstrations, n_groups: int = POSTURE_GROUPS) -> PostureModel:

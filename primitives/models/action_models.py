@@ -68,6 +68,7 @@ from hoap_actions.primitives.discovery.estimator import MANIPULATION, PrimitiveD
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.discovery.groups import action_groups
 from hoap_actions.primitives.hmm.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
+from hoap_actions.primitives.models.approach_ends import fit_approach_ends
 from hoap_actions.primitives.models.class_models import (
     EFFECT_DIM,
     PHI_NAMES,
@@ -157,6 +158,10 @@ class ActionModels(ActionDecoding, Estimator):
     grasp_offset_
         (3,) the object's centre in the hand's frame while the hand moves it (m; ``None`` when learned
         without object poses).
+    approach_ends_
+        (n, 3) where each training approach ended: the hand's x and y from the object's, and its height (m)
+        (:mod:`~hoap_actions.primitives.models.approach_ends`; ``None`` when learned without object poses,
+        or before models kept it); the tracker draws approach goals around a seen block from them.
     pose_classes_
         dict class id -> :class:`ClassModel` of every class refitted with ``pose_mean_model`` (the same
         segments, states and effects; empty without it; models learned before 2026-12-06's third session
@@ -164,10 +169,11 @@ class ActionModels(ActionDecoding, Estimator):
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
-                "action_lifts_", "action_of_class_", "demonstrators_", "grasp_offset_", "pose_classes_")
+                "action_lifts_", "action_of_class_", "demonstrators_", "grasp_offset_", "approach_ends_",
+                "pose_classes_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
-    _readable_versions = (1, 2, 3, FORMAT_VERSION)
+    _readable_versions = (1, 2, 3, 4, FORMAT_VERSION)
 
     def __init__(
         self,
@@ -329,6 +335,8 @@ class ActionModels(ActionDecoding, Estimator):
         self.actions_, self.action_lifts_, self.action_of_class_ = (
             ({}, {}, {}) if O is None else self._fit_actions(inputs, O, lengths))
         self.grasp_offset_ = None if O is None else self._fit_grasp_offset(hands, O, lengths)
+        self.approach_ends_ = None if O is None else fit_approach_ends(
+            discovery, hands, np.split(np.asarray(O, dtype=float), np.cumsum(lengths)[:-1]))
         self.pose_classes_ = self._fit_pose_classes(inputs, stretched)
         return self
 

@@ -1,15 +1,17 @@
 """The models directory of :class:`~hoap_actions.primitives.models.action_models.ActionModels`: its files
 and the checks every entry of its manifest gets on load (each error names the file and the entry).
 
-Layout (``format_version`` 4; version 1 directories, which have no action level, version 2
-ones, which have no grasp offset, and version 3 ones, which have no pose classes, still load):
+Layout (``format_version`` 5; version 1 directories, which have no action level, version 2
+ones, which have no grasp offset, version 3 ones, which have no pose classes, and version 4 ones, which have
+no approach ends, still load):
 ``manifest.json`` (``kind`` "ActionModels", ``format_version``,
 ``params`` the hyper-parameters, ``fps``, ``marker_names``, ``covars_prior`` (D,) or null, and
 ``classes``: per class its ``id``, ``kind``, ``file``, ``effect_centre`` (6,), ``effect_basis``
 (6, r) and ``exit_probability``; and ``actions``, the whole actions of
 :mod:`~hoap_actions.primitives.models.whole_actions`, the same with ``lift_m``; optionally ``demonstrators``, the
 profiles of who demonstrated, absent from models learned before it was kept; ``grasp_offset``
-(3,) m or null, the object's centre in the hand's frame, :mod:`~hoap_actions.primitives.models.object_estimate`),
+(3,) m or null, the object's centre in the hand's frame, :mod:`~hoap_actions.primitives.models.object_estimate`;
+``approach_ends`` (n, 3) m or null, :mod:`~hoap_actions.primitives.models.approach_ends`),
 ``discovery.json`` (the fitted
 :class:`~hoap_actions.primitives.discovery.estimator.PrimitiveDiscovery`, which also cuts new object
 trajectories), ``grammar.json`` (the :class:`~hoap_actions.primitives.discovery.grammar.ActionGrammar`) and
@@ -41,7 +43,7 @@ __all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest
            "models_from_directory", "names", "positive", "profiles_entry", "read_manifest", "read_models_directory",
            "unique_profiles", "write_models_directory"]
 
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 KIND = "ActionModels"
 MANIFEST = "manifest.json"
 MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
@@ -112,6 +114,7 @@ def write_models_directory(models: Any, folder: Path) -> None:
         "covars_prior": None if models.covars_prior_ is None else models.covars_prior_.tolist(),
         **({"demonstrators": list(models.demonstrators_)} if models.demonstrators_ else {}),
         "grasp_offset": None if models.grasp_offset_ is None else models.grasp_offset_.tolist(),
+        "approach_ends": None if models.approach_ends_ is None else models.approach_ends_.tolist(),
         "classes": [
             {"id": cid, "kind": m.kind, "file": f"class_{cid}.npz", "effect_centre": m.centre.tolist(),
              "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability,
@@ -168,6 +171,11 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
     models.demonstrators_ = profiles_entry(manifest_path, manifest.get("demonstrators", []))
     offset = manifest.get("grasp_offset") if version >= 3 else None
     models.grasp_offset_ = None if offset is None else finite_array(manifest_path, "grasp_offset", offset, (3,))
+    ends = manifest.get("approach_ends") if version >= 5 else None
+    if ends is not None and not (isinstance(ends, list) and ends):
+        raise DataFileError(f"{manifest_path}: entry approach_ends must be null or a non-empty list of (x, y, z) rows; "
+                            f"got {ends!r}")
+    models.approach_ends_ = None if ends is None else finite_array(manifest_path, "approach_ends", ends, (len(ends), 3))
     models.discovery_ = PrimitiveDiscovery.load(checked_folder_member(directory, "discovery.json", "discovery file"))
     models.grammar_ = ActionGrammar.load(checked_folder_member(directory, "grammar.json", "grammar file"))
     classes = {e["id"]: _entry_model(directory, e, "classes", "class", width)
