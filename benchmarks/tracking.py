@@ -61,6 +61,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--models", type=Path, default=None,
                         help="an action models directory to track with (default: the shipped models), e.g. an older "
                              "one for a paired comparison")
+    parser.add_argument("--no-far-leaps", action="store_true",
+                        help="from markers: no particle leaps anywhere ahead in its chain (the tracker before them)")
     parser.add_argument("--no-object-place", action="store_true",
                         help="with --from-markers: score the block's motion only, not its place against each "
                              "particle's class (the tracker before the place term)")
@@ -75,6 +77,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
     if args.no_object_place and not args.from_markers:
         parser.error("--no-object-place goes with --from-markers (the camera's tracker has no place term)")
+    if args.no_far_leaps and not args.from_markers:
+        parser.error("--no-far-leaps goes with --from-markers (the camera's tracker makes no far leaps)")
     if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only or args.depth):
         parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera, --depth "
                      "and --speed-only")
@@ -82,7 +86,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
-                      side_camera=False, from_markers=False, depth=False, lag=0, object_place=True) -> dict:
+                      side_camera=False, from_markers=False, depth=False, lag=0, object_place=True,
+                      far_leaps=True) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
@@ -94,7 +99,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
     for index in episodes:
         if from_markers:
             result = track_markers_episode(models, demos, index, particles=particles, seed=0, lag=lag,
-                                           **({} if object_place else {"object_place_m": None}))
+                                           **({} if object_place else {"object_place_m": None}),
+                                           **({} if far_leaps else {"far_leap_share": 0.0}))
         else:
             result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
                                    image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera),
@@ -204,13 +210,15 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"paper seed {seed}, {cues}:", flush=True)
             store[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise,
                                             silhouette, args.side_camera, args.from_markers,
-                                            args.depth and silhouette, args.lag, not args.no_object_place)
+                                            args.depth and silhouette, args.lag, not args.no_object_place,
+                                            not args.no_far_leaps)
     summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
                      "from_markers": args.from_markers, "depth": args.depth, "lag": args.lag,
                      "object_place": args.from_markers and not args.no_object_place,
+                     "far_leaps": args.from_markers and not args.no_far_leaps,
                      "models": "shipped default models" if args.models is None else str(args.models),
                      "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},

@@ -9,6 +9,7 @@ from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.tracking.action_tracker import LEAP_CHAIN_SHARE, LEAP_SHARE, ActionTracker, mean_poses
+from hoap_actions.tracking.image_evidence import depth_misfit, silhouette_misfit
 from hoap_actions.vision.body_model import BodyModel, Capsule
 from hoap_actions.vision.edges import edge_image
 from hoap_actions.vision.silhouette import BackgroundSubtractor
@@ -152,7 +153,7 @@ def test_silhouette_term_prefers_the_true_pose_and_is_small_on_it(models, reach)
     F = next(iter(silhouettes(body, movement[t:t + 1])))
     poses = np.stack([movement[t], movement[t] + [0.0, 0.05, 0.0], movement[t] + [0.0, 0.0, 0.05]])
     poses[2, 0] = movement[t, 0]  # the shoulder stays: the arm bends instead
-    misfit = tracker._silhouette_misfit(poses, body.project(poses, CAMERA), F, CAMERA)
+    misfit = silhouette_misfit(body, body.project(poses, CAMERA), poses.mean(axis=0), F, CAMERA)  # weights equal
     assert misfit[0] < 0.15 and misfit[1] > misfit[0] + 0.1 and misfit[2] > misfit[0] + 0.1
     G = next(iter(images(body, movement[t:t + 1])))
     with_masks = tracker._log_likelihood(poses, [G], [F])
@@ -390,7 +391,7 @@ def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
     along_ray = true + 0.05 * ray / np.linalg.norm(ray)
     poses = np.stack([true, along_ray, true + [0.0, 0.05, 0.0]])
     D = _depth_image(body, true, CAMERA)
-    misfit = tracker._depth_misfit(body.project(poses, CAMERA), D, CAMERA)
+    misfit = depth_misfit(body, body.project(poses, CAMERA), D, CAMERA)
     assert misfit[0] < 1e-4 and misfit[1] > 1e-3 and misfit[2] > misfit[0]
     G = next(iter(images(body, movement[t:t + 1])))
     np.testing.assert_allclose(tracker._log_likelihood(poses, [G]) - tracker._log_likelihood(poses, [G], None, [D]),
@@ -514,3 +515,30 @@ def test_an_approach_s_end_is_read_from_the_particles_still_in_an_approach():
         summary = result.summary()
         assert summary["phi_error_m"] == pytest.approx(error)
         assert summary["approaches_converged"] == (1 if error < 0.02 else 0)
+
+
+def test_with_far_leaps_a_share_of_particles_leaps_anywhere_in_the_rest_of_its_chain(models):
+    """``far_leap_share``: one propagation from the start of each long chain; beyond the learned pace the far
+    leapers' advance is uniform over the rest of the chain (its mean half of it, its largest near all of it),
+    about that share of the manipulation and remove particles leap further than an ordinary leap can, approach
+    particles never leap; shares outside [0, 1] are refused."""
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    tracker = ActionTracker(models, body, CAMERA, n_particles=40000, random_state=1, far_leap_share=0.2)
+    tracked = tracker.models.classes
+    long_classes = sorted(c for c in tracked if tracked[c].phmm.n_states >= 30)
+    tracker.class_id = np.resize(long_classes, tracker.n_particles)
+    sizes = np.array([tracked[c].phmm.n_states for c in tracker.class_id])
+    tracker.state = np.zeros(tracker.n_particles)
+    tracker._propagate()
+    rates = np.array([1.0 - tracked[c].phmm.transmat_[0, 0] for c in tracker.class_id])
+    advance = (tracker.state - rates * tracker.speed) / (sizes - 1)  # share of the chain, beyond the pace
+    approach = np.array([tracked[c].kind == "approach" for c in tracker.class_id])
+    assert np.any(approach) and np.all(np.abs(advance[approach]) < 1e-9)
+    others = advance[~approach]
+    far = others > LEAP_CHAIN_SHARE * 1.05  # no ordinary leap goes this far
+    expected_far = 0.2 * (1 - LEAP_CHAIN_SHARE)  # a far leap shorter than an ordinary one's reach is not told apart
+    assert abs(np.mean(far) - expected_far) < 4 * np.sqrt(expected_far * (1 - expected_far) / others.size)
+    assert others.max() > 0.97 and np.all(tracker.state <= sizes - 1)
+    for wrong in (-0.1, 1.5, True, "0.1"):
+        with pytest.raises(InvalidInputError, match="far_leap_share"):
+            ActionTracker(models, body, CAMERA, far_leap_share=wrong)

@@ -9,7 +9,8 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
   discrete ``s`` a fast reach falls between two means, and particles that wait where the image fits
   best never catch up.
 * In manipulations and removes, a small share of particles (:data:`LEAP_SHARE` per frame) leaps ahead
-  in its chain, by up to :data:`LEAP_CHAIN_SHARE` of its states: a demonstrator who lingers and then
+  in its chain, by up to :data:`LEAP_CHAIN_SHARE` of its states (with ``far_leap_share``, another share
+  leaps anywhere in the rest of it): a demonstrator who lingers and then
   moves fast (a slow lift before a quick withdrawal) leaves particles moving at a learned pace behind,
   and near the block the image does not tell them apart until the arm has gone. Approach particles do
   not leap: those that did finished their reach before the arm showed its goal, and the goal's
@@ -62,12 +63,13 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.tracking.image_evidence import contour_misfit, depth_misfit, silhouette_misfit
 from hoap_actions.tracking.object_evidence import OBJECT_MOVING_M, OBJECT_STILL_M, ObjectEvidence
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
 from hoap_actions.tracking.smoothing import MAX_LAG, ParticleLineage, SmoothedFrame
 from hoap_actions.tracking.tracking_models import TrackingModels
-from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
+from hoap_actions.vision.body_model import BodyModel, Projector
 
 __all__ = ["ActionTracker", "TrackedFrame", "mean_poses"]  # mean_poses: from poses, where it moved
 
@@ -85,6 +87,11 @@ SPEED_SPREAD = 0.3  # log-normal sigma of a particle's speed through its chain (
 SPEED_JITTER = 0.05  # per-frame log-normal change of that speed
 LEAP_SHARE = 0.05  # particles per frame that leap ahead in their chain (validation recording: 0.02-0.1 tried)
 LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain's states (0.15-0.5 tried)
+# particles per frame whose leap is uniform over the rest of their chain, as track_markers_episode asks: a filter
+# held in a manipulation piece while the hand rises and leaves enters the remove at its first state, where the
+# remove's lift stands between it and the hand at rest (validation `paper` 341: 21 -> 4 cm; from images it cost
+# 0.1-0.2 cm, so it is off by default)
+FAR_LEAP_SHARE = 0.01
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
 # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
 OBJECT_END_SPREAD_M = 0.045
@@ -96,9 +103,6 @@ APPROACH_AT_BLOCK_DIFFUSION_M = 0.001
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 DEPTH_SIGMA_M = 0.02  # sigma of the depth term (m of truncated depth misfit; validation recording)
-DEPTH_TRUNCATION_M = 0.05  # a depth residual counts at most this much: an occluded or mismeasured point is not a pose
-FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
-FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
 MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
 # collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
@@ -113,13 +117,6 @@ def _within_unit_range(image: np.ndarray) -> str | None:
 def _depths_or_holes(image: np.ndarray) -> str | None:
     wrong = np.any(image <= 0.0) or np.any(np.isinf(image))
     return "depths > 0 (m) or NaN where none was measured" if wrong else None
-
-
-def _visible_mean(values: np.ndarray) -> np.ndarray:
-    """Row means over the finite entries (NaN: hidden points); 1 for a row with none (nothing seen)."""
-    seen = np.isfinite(values)
-    count = seen.sum(axis=1)
-    return np.where(count > 0, np.where(seen, values, 0.0).sum(axis=1) / np.maximum(count, 1), 1.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,6 +184,10 @@ class ActionTracker:
         (:mod:`~hoap_actions.tracking.object_evidence`); None (the default) turns it off. For exact object
         positions (motion capture, :func:`~hoap_actions.tracking.track_markers_episode` uses
         :data:`~hoap_actions.tracking.object_evidence.OBJECT_PLACE_M`), not the camera's block locator.
+    far_leap_share
+        particles per frame, in manipulations and removes, whose leap goes anywhere in the rest of their
+        chain (0, the default: none); :func:`~hoap_actions.tracking.track_markers_episode` uses
+        :data:`FAR_LEAP_SHARE`.
 
     Attributes
     ----------
@@ -202,7 +203,7 @@ class ActionTracker:
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
                  depth_sigma_m: float = DEPTH_SIGMA_M, lag: int | None = None,
-                 object_place_m: float | None = None) -> None:
+                 object_place_m: float | None = None, far_leap_share: float = 0.0) -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
@@ -215,6 +216,9 @@ class ActionTracker:
                                     f"{object_still_m!r}, {object_moving_m!r}")
         if object_place_m is not None and not (np.isfinite(object_place_m) and object_place_m > 0):
             raise InvalidInputError(f"object_place_m must be > 0 (m) or None (off); got {object_place_m!r}")
+        if not (isinstance(far_leap_share, (int, float)) and not isinstance(far_leap_share, bool)
+                and 0.0 <= far_leap_share <= 1.0):
+            raise InvalidInputError(f"far_leap_share must be a share in [0, 1]; got {far_leap_share!r}")
         if lag is not None and (isinstance(lag, bool) or not isinstance(lag, (int, np.integer))
                                 or not 0 <= lag <= MAX_LAG):
             raise InvalidInputError(f"lag must be None or an int in 0..{MAX_LAG} (frames); got {lag!r}")
@@ -234,6 +238,7 @@ class ActionTracker:
         self.silhouette_sigma = float(silhouette_sigma)
         self.depth_sigma_m = float(depth_sigma_m)
         self.lag = None if lag is None else int(lag)
+        self.far_leap_share = float(far_leap_share)
         self._evidence = ObjectEvidence(models, object_still_m and float(object_still_m), float(object_moving_m),
                                         object_place_m and float(object_place_m))
         self._rng = np.random.default_rng(random_state)
@@ -426,6 +431,9 @@ class ActionTracker:
             s = np.minimum(self.state[chosen], k - 1)
             leaps = self._rng.random(chosen.size) < LEAP_SHARE
             leap = leaps * self._rng.uniform(0.0, LEAP_CHAIN_SHARE * k, chosen.size) * (model.kind != APPROACH)
+            if self.far_leap_share > 0 and model.kind != APPROACH:
+                far = self._rng.random(chosen.size) < self.far_leap_share
+                leap = np.where(far, self._rng.uniform(0.0, 1.0, chosen.size) * (k - 1 - s), leap)
             self.state[chosen] = np.minimum(s + rate[s.astype(int)] * self.speed[chosen] + leap, k - 1)
             self.offset[chosen] = self.poses.drift(cid, s, self.offset[chosen], self._rng)
             cooling = END_DIFFUSION_FLOOR + (1.0 - END_DIFFUSION_FLOOR) * (1.0 - s / max(k - 1, 1))
@@ -512,55 +520,19 @@ class ActionTracker:
                         masks: list[np.ndarray] | None = None, depths: list[np.ndarray] | None = None) -> np.ndarray:
         """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)`` over the contour points
         not hidden by the table; off-image points count as 1. With foreground masks F, each view adds
-        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)`` (:meth:`_silhouette_misfit`); with depth images,
-        ``-misfit / (2 sigma_d^2)`` (:meth:`_depth_misfit`)."""
+        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)``; with depth images, ``-misfit / (2 sigma_d^2)``
+        (:mod:`~hoap_actions.tracking.image_evidence`)."""
         total = np.zeros(self.n_particles)
+        mean_pose = np.sum(self.weights[:, None, None] * markers, axis=0)
         for k, (image, camera) in enumerate(zip(images, self.cameras)):
             bodies = self.body.project(markers, camera)
-            total -= _visible_mean((1.0 - self._sample(image, self.body.contour(bodies), camera)) ** 2) \
-                / (2.0 * self.observation_sigma**2)
+            total -= contour_misfit(self.body, bodies, image, camera) / (2.0 * self.observation_sigma**2)
             if masks is not None:
-                total -= self._silhouette_misfit(markers, bodies, masks[k], camera) / (2.0 * self.silhouette_sigma**2)
+                total -= silhouette_misfit(self.body, bodies, mean_pose, masks[k], camera) \
+                    / (2.0 * self.silhouette_sigma**2)
             if depths is not None:
-                total -= self._depth_misfit(bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
+                total -= depth_misfit(self.body, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
         return total
-
-    def _depth_misfit(self, bodies: ProjectedBodies, depth: np.ndarray, camera: Projector) -> np.ndarray:
-        """Per particle (m^2): the mean squared difference, each truncated at :data:`DEPTH_TRUNCATION_M`,
-        between the measured depth at its limbs' axis points and its limbs' near surface there; points hidden
-        by the table, off the image or where the sensor measured nothing are left out (none left: 0)."""
-        measured = self._sample(depth, self.body.interior(bodies), camera, outside=np.nan)
-        residual = np.minimum(np.square(measured - self.body.surface_depths(bodies)), DEPTH_TRUNCATION_M**2)
-        seen = np.isfinite(residual)
-        return np.where(seen, residual, 0.0).sum(axis=1) / np.maximum(seen.sum(axis=1), 1)
-
-    @staticmethod
-    def _sample(image: np.ndarray, pixels: np.ndarray, camera: Projector, outside: float = 0.0) -> np.ndarray:
-        """``image`` at the nearest pixel of each of ``pixels`` (..., 2): ``outside`` off the image, NaN for NaN
-        (hidden) pixels."""
-        hidden = ~np.isfinite(pixels).all(axis=-1)
-        u = np.rint(np.where(hidden, -1.0, pixels[..., 0])).astype(np.int64)
-        v = np.rint(np.where(hidden, -1.0, pixels[..., 1])).astype(np.int64)
-        inside = (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
-        values = np.full(u.shape, float(outside))
-        values[inside] = image[v[inside], u[inside]]
-        values[hidden] = np.nan
-        return values
-
-    def _silhouette_misfit(self, markers: np.ndarray, bodies: ProjectedBodies, mask: np.ndarray,
-                           camera: Projector) -> np.ndarray:
-        """Per particle: the share of its visible limb axis points off the foreground, plus the share of the
-        foreground (sampled on a grid, outside the trunk of the particles' mean pose) its body leaves
-        uncovered; 0 for a pose that matches the silhouette."""
-        off_person = _visible_mean(1.0 - self._sample(mask, self.body.interior(bodies), camera))
-        v, u = np.nonzero(mask[::FOREGROUND_STRIDE_PX, ::FOREGROUND_STRIDE_PX] > 0.5)
-        pixels = np.stack([u, v], axis=1) * FOREGROUND_STRIDE_PX
-        mean_pose = np.sum(self.weights[:, None, None] * markers, axis=0)[None]
-        pixels = pixels[~self.body.covers(self.body.project(mean_pose, camera), pixels, self.body.trunk)[0]]
-        if not len(pixels):  # no one beside the trunk: nothing for an arm to cover
-            return off_person
-        keep = np.unique(np.linspace(0, len(pixels) - 1, min(len(pixels), FOREGROUND_SAMPLES)).astype(int))
-        return off_person + 1.0 - np.mean(self.body.covers(bodies, pixels[keep]), axis=1)
 
     def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool) -> TrackedFrame:
         best = int(np.argmax(weights))

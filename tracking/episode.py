@@ -25,7 +25,7 @@ from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
-from hoap_actions.tracking.action_tracker import MARKER_SIGMA_M, ActionTracker, TrackedFrame
+from hoap_actions.tracking.action_tracker import FAR_LEAP_SHARE, MARKER_SIGMA_M, ActionTracker, TrackedFrame
 from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.smoothing import SmoothedFrame
@@ -303,12 +303,14 @@ class _Observer:
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                           seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True,
                           pose_proposal: str = "offsets", posture: PostureModel | None = None,
-                          lag: int = 0, object_place_m: float | None = OBJECT_PLACE_M) -> TrackResult:
+                          lag: int = 0, object_place_m: float | None = OBJECT_PLACE_M,
+                          far_leap_share: float = FAR_LEAP_SHARE) -> TrackResult:
     """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
     (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
     vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
     gives the tracker the recorded object's centre, as the camera's block locator does, and ``object_place_m``
-    scores its place against each particle's class (None: its motion only, as from the camera);
+    scores its place against each particle's class (None: its motion only, as from the camera); ``far_leap_share``
+    (:class:`ActionTracker`) lets a few particles a frame leap anywhere ahead in their chain;
     ``pose_proposal``, ``posture`` and ``lag`` as for :func:`track_episode`."""
     ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
@@ -319,7 +321,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     body = BodyModel(models.marker_names_, torso_base=torso_base, hidden_below_z=TABLE_TOP_Z)
     tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, DEMONSTRATOR_CAMERA,
                             n_particles=particles, pose_proposal=pose_proposal, random_state=seed,
-                            lag=lag or None, object_place_m=object_place_m if object_cue else None)
+                            lag=lag or None, object_place_m=object_place_m if object_cue else None,
+                            far_leap_share=far_leap_share)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
     frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
