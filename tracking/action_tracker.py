@@ -247,12 +247,15 @@ class ActionTracker:
         self._manipulations = self._evidence.manipulations
         self._n_markers = len(models.marker_names)
         self._grammar_rows = self._successor_table()
-        self.hand_from_object, self._object_end_spread_m = (
-            (np.asarray(models.object_end[0], float), float(models.object_end[1])) if models.object_end is not None
-            else (self._hand_offset_from_object(), OBJECT_END_SPREAD_M))
         self._approach_ends = models.approach_ends if models.object_end is None else None
-        if self._approach_ends is not None:
+        self._object_end_spread_m = OBJECT_END_SPREAD_M
+        if models.object_end is not None:
+            self.hand_from_object, self._object_end_spread_m = (np.asarray(models.object_end[0], float),
+                                                                float(models.object_end[1]))
+        elif self._approach_ends is not None:
             self.hand_from_object = np.asarray(self._approach_ends, float).mean(axis=0)
+        else:
+            self.hand_from_object = self._hand_offset_from_object()
         self._end_box = {}
         for cid, model in models.classes.items():
             ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
@@ -523,7 +526,7 @@ class ActionTracker:
         ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)``; with depth images, ``-misfit / (2 sigma_d^2)``
         (:mod:`~hoap_actions.tracking.image_evidence`)."""
         total = np.zeros(self.n_particles)
-        mean_pose = np.sum(self.weights[:, None, None] * markers, axis=0)
+        mean_pose = None if masks is None else np.sum(self.weights[:, None, None] * markers, axis=0)
         for k, (image, camera) in enumerate(zip(images, self.cameras)):
             bodies = self.body.project(markers, camera)
             total -= contour_misfit(self.body, bodies, image, camera) / (2.0 * self.observation_sigma**2)
