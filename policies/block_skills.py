@@ -84,6 +84,11 @@ MAX_PAST = np.radians(33.0)  # rad, ... and at most this (36-38 degrees past, pu
 CROSSING = 0.006  # m, ... this far short of the target on the second push's line (where that push turns it back)
 SLOW_PUSH = 0.1  # of the hand's speed limit: the pushes of a turn through (0.5 mm a step, 1.5 mm between looks)
 LATERAL_GAIN = 0.7  # of the block's lateral error the hand moves per look: the thumb holds the block by friction
+INNER_ALONG = 0.05  # m, where along the thumb's inner face (from its back end) it meets the block ...
+INNER_THUMB_HIGH = np.radians(-20.0)  # rad, ... the thumb at least this open, so the block clears the palm (5 mm)
+OPEN_STOP_MARGIN = np.radians(10.0)  # rad, an outer face this near the thumb's open stop (or past it) ...
+INNER_GAIN = np.radians(5.0)  # rad, ... is pushed by the inner face if that leaves the thumb this much further in
+INNER_STEER = 0.005  # m, the most the looks shift an inner push towards the thumb's tip: the block sits 5 mm from it
 THUMB_LOW = -THUMB_CONTACT_CLOSURE * THUMB_RANGE  # rad, the thumb's angle to the palm fully open (closure 0)
 THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (closure 1)
 
@@ -142,14 +147,16 @@ class BlockPose:
 @dataclass(frozen=True)
 class PushPlan:
     """A thumb push: the face's heading ``face`` (rad, world), the push ``direction`` (unit (2,), the
-    face's outer normal), the thumb's angle to the palm at the end (rad) and the tcp points (3,) where
-    the thumb comes down (``start``) and, ahead of it, that put the block at the target (``end``)."""
+    pushing face's normal: the outer face's away from the palm, the ``inner`` face's towards it), the
+    thumb's angle to the palm at the end (rad) and the tcp points (3,) where the thumb comes down
+    (``start``) and, ahead of it, that put the block at the target (``end``)."""
 
     face: float
     direction: np.ndarray
     thumb: float
     start: np.ndarray
     end: np.ndarray
+    inner: bool = False
 
 
 class BlockHand:
@@ -339,34 +346,41 @@ class BlockHand:
                 break
         return best[1]
 
-    def contact_tcp(self, block_xy: np.ndarray, face: float, gap: float) -> tuple[np.ndarray, float]:
-        """The tcp point (3,) at push height whose thumb, at heading ``face``, stands ``gap`` (m) off the
-        block at ``block_xy`` (2,), and the thumb's angle to the palm there (rad): the hand's heading is
-        the IK model's where the tcp then is, so the two are found together (three rounds)."""
-        tcp = block_xy + HAND_OFF * _unit(face + np.pi / 2)
+    def contact_tcp(self, block_xy: np.ndarray, face: float, gap: float,
+                    inner: bool = False) -> tuple[np.ndarray, float]:
+        """The tcp point (3,) at push height whose thumb, its outer (or ``inner``) face at heading ``face``,
+        stands ``gap`` (m) off the block at ``block_xy`` (2,), and the thumb's angle to the palm there (rad):
+        the hand's heading is the IK model's where the tcp then is, so the two are found together (three
+        rounds)."""
+        tcp = block_xy + (INNER_ALONG / 2 if inner else HAND_OFF) * _unit(face + np.pi / 2)
+        high = INNER_THUMB_HIGH if inner else THUMB_HIGH
         for _ in range(3):
             heading = self.heading_at(np.array([*tcp, PUSH_Z]))
-            thumb = float(np.clip(face - heading, THUMB_LOW, THUMB_HIGH))
-            tcp = self.tcp_for_contact(block_xy, heading, thumb, gap)
+            thumb = float(np.clip(face - heading, THUMB_LOW, high))
+            tcp = self.tcp_for_contact(block_xy, heading, thumb, gap, inner)
         return np.array([*tcp, PUSH_Z]), thumb
 
     def plan_push(self, block: BlockPose, target_xy: np.ndarray, face: float,
-                  overshoot: float = PUSH_OVERSHOOT) -> PushPlan:
-        """A push of the block from ``block`` to ``target_xy`` (2,) by the thumb's outer face at heading
-        ``face`` (rad), along the face's outer normal, to ``overshoot`` (m) past the target."""
-        start, thumb = self.contact_tcp(block.xy, face, PUSH_GAP)
-        end, _ = self.contact_tcp(target_xy, face, -overshoot)
-        return PushPlan(face, _unit(face - np.pi / 2), thumb, start, end)
+                  overshoot: float = PUSH_OVERSHOOT, inner: bool = False) -> PushPlan:
+        """A push of the block from ``block`` to ``target_xy`` (2,) by the thumb's outer (or ``inner``) face
+        at heading ``face`` (rad), along the face's normal, to ``overshoot`` (m) past the target."""
+        start, thumb = self.contact_tcp(block.xy, face, PUSH_GAP, inner)
+        end, _ = self.contact_tcp(target_xy, face, -overshoot, inner)
+        direction = _unit(face + np.pi / 2) if inner else _unit(face - np.pi / 2)
+        return PushPlan(face, direction, thumb, start, end, inner)
 
     @staticmethod
-    def tcp_for_contact(block_xy: np.ndarray, heading: float, thumb: float, gap: float) -> np.ndarray:
-        """The tcp's xy (2,) that puts the thumb's outer face (at ``thumb`` rad to the palm, the hand
-        headed ``heading``) ``gap`` (m) short of the side of a block centred at ``block_xy``, meeting it
-        :data:`PUSH_ALONG` from the thumb's back end."""
+    def tcp_for_contact(block_xy: np.ndarray, heading: float, thumb: float, gap: float,
+                        inner: bool = False) -> np.ndarray:
+        """The tcp's xy (2,) that puts the thumb's outer face (or its ``inner`` one, the block then between
+        thumb and palm), at ``thumb`` rad to the palm, the hand headed ``heading``, ``gap`` (m) short of the
+        side of a block centred at ``block_xy``, meeting it :data:`PUSH_ALONG` (inner: :data:`INNER_ALONG`)
+        from the thumb's back end."""
         outline = thumb_outline(closure_for(thumb))  # tcp frame: back-outer, front-outer, front-inner, back-inner
-        along = (outline[1] - outline[0]) / np.linalg.norm(outline[1] - outline[0])
-        normal = np.array([along[1], -along[0]])  # out of the outer face
-        contact = outline[0] + PUSH_ALONG * along
+        back, front = (outline[3], outline[2]) if inner else (outline[0], outline[1])
+        along = (front - back) / np.linalg.norm(front - back)
+        normal = np.array([-along[1], along[0]]) if inner else np.array([along[1], -along[0]])  # out of the face
+        contact = back + (INNER_ALONG if inner else PUSH_ALONG) * along
         return block_xy - _rotation2(heading) @ (contact + (HALF + gap) * normal)
 
     def face_reached(self, target_xy: np.ndarray, face: float) -> float:
@@ -376,12 +390,33 @@ class BlockHand:
         tcp, thumb = self.contact_tcp(target_xy, face, 0.0)
         return self.heading_at(tcp) + thumb
 
+    def inner_face(self, target_xy: np.ndarray, yaw: float, face: float) -> float | None:
+        """The heading (rad) of the thumb's inner face for the push that leaves the block at ``target_xy``
+        (2,) turned ``yaw`` (rad), where the outer face's push (at ``face``) would hold the thumb within
+        :data:`OPEN_STOP_MARGIN` of its open stop or past it, and the inner face keeps it at least
+        :data:`INNER_GAIN` further in; None otherwise. The inner face pushes the other way, its hand
+        standing over the block rather than beside it: 2 to 3 cm further right, where the hand is headed
+        7 to 10 degrees less to the left."""
+        tcp, _ = self.contact_tcp(target_xy, face, 0.0)
+        outer = face - self.heading_at(tcp)
+        if outer > THUMB_LOW + OPEN_STOP_MARGIN:
+            return None
+        best = None
+        for k in range(-2, 3):
+            candidate = wrap_quarter(yaw) + k * np.pi / 2
+            tcp, _ = self.contact_tcp(target_xy, candidate, 0.0, inner=True)
+            thumb = candidate - self.heading_at(tcp)
+            reached = THUMB_LOW <= thumb <= INNER_THUMB_HIGH and thumb >= outer + INNER_GAIN
+            if reached and (best is None or thumb > best[0]):
+                best = (thumb, candidate)
+        return None if best is None else best[1]
+
     def push_to(self, block: BlockPose, target_xy: np.ndarray, face: float, overshoot: float = PUSH_OVERSHOOT,
-                speed: float = PUSH_SPEED) -> Generator[np.ndarray, None, bool]:
-        """Push the block to ``target_xy`` (2,) with the face at ``face`` (rad), first sliding it behind the
-        target on the push's line (:meth:`place`, :func:`run_up` behind) when it is off that line or too
-        close to turn on the way. Returns False when the camera loses the block."""
-        plan = self.plan_push(block, target_xy, face, overshoot)
+                speed: float = PUSH_SPEED, inner: bool = False) -> Generator[np.ndarray, None, bool]:
+        """Push the block to ``target_xy`` (2,) with the outer (or ``inner``) face at ``face`` (rad), first
+        sliding it behind the target on the push's line (:meth:`place`, :func:`run_up` behind) when it is
+        off that line or too close to turn on the way. Returns False when the camera loses the block."""
+        plan = self.plan_push(block, target_xy, face, overshoot, inner)
         offset = target_xy - block.xy
         ahead, aside = float(offset @ plan.direction), float(offset @ np.array([-plan.direction[1], plan.direction[0]]))
         turn = abs(wrap_quarter(block.yaw - face))
@@ -390,7 +425,7 @@ class BlockHand:
             block = self.look()
             if block is None:
                 return False
-            plan = self.plan_push(block, target_xy, face, overshoot)
+            plan = self.plan_push(block, target_xy, face, overshoot, inner)
         yield from self.push(plan, target_xy, overshoot, speed)
         return True
 
@@ -432,7 +467,7 @@ class BlockHand:
         of the hand's limit) with the thumb's closure servoed to keep the face at its heading and the hand
         steered sideways by what the camera sees of the block, until the block is ``overshoot`` (m) past
         the target."""
-        self.skills.append("push")
+        self.skills.append("inner push" if plan.inner else "push")
         direction = plan.direction
         side = np.array([-direction[1], direction[0]])
 
@@ -460,6 +495,8 @@ class BlockHand:
             if error @ direction < -overshoot:
                 break
             line = line + LATERAL_GAIN * float(error @ side) * side
+            if plan.inner:  # the hand goes back along the block (it slides tipwards on the thumb) only so far
+                line = line - max(0.0, float((line - plan.start[:2]) @ side) - INNER_STEER) * side
             full = travelled + float(error @ direction) + overshoot
         yield from self.go([*(self.desired[:2] - PUSH_GAP * direction), PUSH_Z], speed=0.5, tolerance=0.004)
         yield from self.retreat()

@@ -149,7 +149,8 @@ class BlockImitation(ABC):
 
     @property
     def skills(self) -> list[str]:
-        """The hand skills this episode ran, in order (``"approach"``, ``"place"``, ``"push"``, ``"turn through"``)."""
+        """The hand skills this episode ran, in order (``"approach"``, ``"place"``, ``"push"``, ``"inner push"``,
+        ``"turn through"``)."""
         return self.hand.skills
 
     @property
@@ -187,8 +188,9 @@ class BlockImitation(ABC):
         target = block.xy + shown.displacement
         yaw = block.yaw + shown.turn
         face = self.hand.push_face(target, yaw)
-        first = self.hand.overturn_face(target, yaw, face)  # None: the usual push
-        if shown.action == "move":
+        inner = self.hand.inner_face(target, yaw, face)  # None: the outer face's push
+        first = None if inner is not None else self.hand.overturn_face(target, yaw, face)  # None: the usual push
+        if shown.action == "move" and inner is None:  # an inner push's target is one a grasp cannot leave it at
             yield from self.hand.place(block, target)
         for _ in range(MAX_ATTEMPTS):
             block = self.hand.look()
@@ -197,8 +199,11 @@ class BlockImitation(ABC):
                 return
             logger.debug("block at %s turned %.1f deg; target %s turned %.1f deg (face %.1f deg%s)",
                          np.round(block.xy, 4), np.degrees(block.yaw), np.round(target, 4), np.degrees(yaw),
-                         np.degrees(face), "" if first is None else f", turned through from {np.degrees(first):.1f}")
-            if first is not None:
+                         np.degrees(face), "" if first is None else f", turned through from {np.degrees(first):.1f}"
+                         + ("" if inner is None else f", inner face {np.degrees(inner):.1f}"))
+            if inner is not None:
+                seen = yield from self.hand.push_to(block, target, inner, inner=True)
+            elif first is not None:
                 seen = yield from self.hand.turn_through(block, target, face, first)
             else:
                 seen = yield from self.hand.push_to(block, target, face)

@@ -16,6 +16,10 @@ from hoap_actions.errors import InvalidInputError, ResetNeededError
 from hoap_actions.imitation.imitate_env import BLOCK_SIZE
 from hoap_actions.policies.block_skills import (
     HALF,
+    INNER_ALONG,
+    INNER_GAIN,
+    INNER_THUMB_HIGH,
+    OPEN_STOP_MARGIN,
     PUSH_ALONG,
     PUSH_Z,
     THUMB_HIGH,
@@ -83,6 +87,18 @@ def test_a_turn_out_of_the_thumbs_reach_is_turned_through(env):
     assert env.get_wrapper_attr("true_demonstration")().action == "rotate"
     assert result.success, result
     assert policy.skills[:2] == ["turn through", "place"], policy.skills
+
+
+@pytest.mark.slow
+def test_a_square_target_at_the_far_left_is_pushed_there_by_the_thumbs_inner_face(env):
+    """A move to 5.9 cm left of the centre line, the block square (validation episode 90095, missed
+    while the outer face's push held the thumb at its open stop there): pushed leftwards by the thumb's
+    inner face, with no grasp at the target first, it ends there."""
+    policy = ExecutionCeiling(env)
+    result = run_episode(env, policy, 90095)
+    assert env.get_wrapper_attr("true_demonstration")().action == "move"
+    assert result.success, result
+    assert "inner push" in policy.skills and "push" not in policy.skills, policy.skills
 
 
 def test_the_thumbs_face_takes_the_asked_heading_within_reach_and_its_stop_beyond(env):
@@ -226,6 +242,48 @@ def test_the_thumb_stands_the_gap_off_the_block():
     assert float((block - face[0]) @ normal) == pytest.approx(HALF + gap)
     assert float((block - face[0]) @ along) == pytest.approx(PUSH_ALONG)
     assert np.arctan2(along[1], along[0]) == pytest.approx(heading + thumb)
+
+
+def test_the_thumbs_inner_face_holds_the_block_clear_of_the_palm():
+    """The inner face's push: the block between thumb and palm, the inner face the gap off it, and the
+    block's far side clear of the palm's inner face (v = 7.5 mm in the tcp frame) at the thumb's angles
+    the inner push uses."""
+    heading, gap = np.radians(35.0), 0.004
+    block = np.array([0.0, 0.08])
+    for thumb in [*np.radians([-45.0, -38.0]), INNER_THUMB_HIGH]:
+        tcp = BlockHand.tcp_for_contact(block, heading, thumb, gap, inner=True)
+        outline = thumb_outline(closure_for(thumb))
+        c, s = np.cos(heading), np.sin(heading)
+        rotation_t = np.array([[c, s], [-s, c]])  # the hand's rotation, transposed: rows @ it turn tcp into world
+        face = tcp + outline[[3, 2]] @ rotation_t  # the inner face's ends in the world
+        along = (face[1] - face[0]) / np.linalg.norm(face[1] - face[0])
+        normal = np.array([-along[1], along[0]])  # towards the palm
+        assert float((block - face[0]) @ normal) == pytest.approx(HALF + gap)
+        assert float((block - face[0]) @ along) == pytest.approx(INNER_ALONG)
+        corners = np.array([block + a * HALF * along + b * HALF * normal for a in (-1, 1) for b in (-1, 1)])
+        in_tcp = (corners - tcp) @ rotation_t.T
+        assert np.all(in_tcp[:, 1] < 0.0075 - 0.004), in_tcp  # 4 mm or more short of the palm
+
+
+def test_the_inner_face_serves_a_square_target_at_the_far_left(env):
+    """At the far left the hand is headed 35 degrees or more, so the outer face's push to a square target
+    holds the thumb at its open stop; the inner face's hand stands further right and keeps it in."""
+    obs, _ = env.reset(seed=SEEDS["push"])
+    hand = BlockHand(env)
+    hand.start(obs)
+    far_left, centre = np.array([0.0, 0.085]), np.array([0.0, 0.0])
+    face = hand.push_face(far_left, 0.0)
+    outer = face - hand.heading_at(hand.contact_tcp(far_left, face, 0.0)[0])
+    assert outer <= THUMB_LOW + OPEN_STOP_MARGIN
+    inner = hand.inner_face(far_left, 0.0, face)
+    assert inner is not None and abs(wrap_quarter(inner)) < 1e-9
+    tcp, thumb = hand.contact_tcp(far_left, inner, 0.0, inner=True)
+    assert THUMB_LOW <= inner - hand.heading_at(tcp) <= INNER_THUMB_HIGH
+    assert inner - hand.heading_at(tcp) >= outer + INNER_GAIN
+    assert tcp[1] < hand.contact_tcp(far_left, face, 0.0)[0][1]  # it stands further right
+    plan = hand.plan_push(hand.look(), far_left, inner, inner=True)
+    assert plan.inner and plan.direction @ np.array([0.0, 1.0]) == pytest.approx(1.0)  # it pushes to the left
+    assert hand.inner_face(centre, 0.0, hand.push_face(centre, 0.0)) is None  # in the middle the outer face serves
 
 
 def test_the_hand_turns_left_as_it_goes_left(env):
