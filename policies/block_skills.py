@@ -88,6 +88,7 @@ CROSSING = 0.006  # m, ... this far short of the target on the second push's lin
 SLOW_PUSH = 0.1  # of the hand's speed limit: the pushes of a turn through (0.5 mm a step, 1.5 mm between looks)
 LATERAL_GAIN = 0.7  # of the block's lateral error the hand moves per look: the thumb holds the block by friction
 INNER_ALONG = 0.05  # m, where along the thumb's inner face (from its back end) it meets the block ...
+INNER_HAND_OFF = 0.025  # m, ... the first guess of how far the tcp stands from the block's centre, palm-wards ...
 INNER_THUMB_HIGH = np.radians(-20.0)  # rad, ... the thumb at least this open, so the block clears the palm (5 mm)
 OPEN_STOP_MARGIN = np.radians(10.0)  # rad, an outer face this near the thumb's open stop (or past it) ...
 INNER_GAIN = np.radians(5.0)  # rad, ... is pushed by the inner face if that leaves the thumb this much further in
@@ -355,7 +356,7 @@ class BlockHand:
         stands ``gap`` (m) off the block at ``block_xy`` (2,), and the thumb's angle to the palm there (rad):
         the hand's heading is the IK model's where the tcp then is, so the two are found together (three
         rounds)."""
-        tcp = block_xy + (INNER_ALONG / 2 if inner else HAND_OFF) * _unit(face + np.pi / 2)
+        tcp = block_xy + (INNER_HAND_OFF if inner else HAND_OFF) * _unit(face + np.pi / 2)
         high = INNER_THUMB_HIGH if inner else THUMB_HIGH
         for _ in range(3):
             heading = self.heading_at(np.array([*tcp, PUSH_Z]))
@@ -386,6 +387,12 @@ class BlockHand:
         contact = back + (INNER_ALONG if inner else PUSH_ALONG) * along
         return block_xy - _rotation2(heading) @ (contact + (HALF + gap) * normal)
 
+    def thumb_needed(self, target_xy: np.ndarray, face: float, inner: bool = False) -> float:
+        """The thumb's angle to the palm (rad, not held within its range) that sets its outer (or ``inner``)
+        face at ``face`` (rad) for a push that leaves the block at ``target_xy`` (2,)."""
+        tcp, _ = self.contact_tcp(target_xy, face, 0.0, inner)
+        return face - self.heading_at(tcp)
+
     def face_reached(self, target_xy: np.ndarray, face: float) -> float:
         """The heading (rad) the thumb's outer face takes for a push that leaves the block at ``target_xy``
         (2,) with the face asked at ``face`` (rad): ``face`` within the thumb's reach there, else the stop
@@ -400,15 +407,13 @@ class BlockHand:
         :data:`INNER_GAIN` further in; None otherwise. The inner face pushes the other way, its hand
         standing over the block rather than beside it: 2 to 3 cm further right, where the hand is headed
         7 to 10 degrees less to the left."""
-        tcp, _ = self.contact_tcp(target_xy, face, 0.0)
-        outer = face - self.heading_at(tcp)
+        outer = self.thumb_needed(target_xy, face)
         if outer > THUMB_LOW + OPEN_STOP_MARGIN:
             return None
         best = None
         for k in range(-2, 3):
             candidate = wrap_quarter(yaw) + k * np.pi / 2
-            tcp, _ = self.contact_tcp(target_xy, candidate, 0.0, inner=True)
-            thumb = candidate - self.heading_at(tcp)
+            thumb = self.thumb_needed(target_xy, candidate, inner=True)
             reached = THUMB_LOW <= thumb <= INNER_THUMB_HIGH and thumb >= outer + INNER_GAIN
             if reached and (best is None or thumb > best[0]):
                 best = (thumb, candidate)
