@@ -92,6 +92,7 @@ INNER_HAND_OFF = 0.025  # m, ... the first guess of how far the tcp stands from 
 INNER_THUMB_HIGH = np.radians(-20.0)  # rad, ... the thumb at least this open, so the block clears the palm (5 mm)
 OPEN_STOP_MARGIN = np.radians(10.0)  # rad, an outer face this near the thumb's open stop (or past it) ...
 INNER_GAIN = np.radians(5.0)  # rad, ... is pushed by the inner face if that leaves the thumb this much further in
+INNER_SQUARE = np.radians(15.0)  # rad, ... and only for a target this near square (turned ones it lost held-out)
 INNER_STEER = 0.005  # m, the most the looks shift an inner push towards the thumb's tip: the block sits 5 mm from it
 THUMB_LOW = -THUMB_CONTACT_CLOSURE * THUMB_RANGE  # rad, the thumb's angle to the palm fully open (closure 0)
 THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (closure 1)
@@ -402,11 +403,14 @@ class BlockHand:
 
     def inner_face(self, target_xy: np.ndarray, yaw: float, face: float) -> float | None:
         """The heading (rad) of the thumb's inner face for the push that leaves the block at ``target_xy``
-        (2,) turned ``yaw`` (rad), where the outer face's push (at ``face``) would hold the thumb within
-        :data:`OPEN_STOP_MARGIN` of its open stop or past it, and the inner face keeps it at least
+        (2,) turned ``yaw`` (rad) within :data:`INNER_SQUARE` of square, where the outer face's push (at
+        ``face``) would hold the thumb within :data:`OPEN_STOP_MARGIN` of its open stop or past it, and the
+        inner face keeps it at least
         :data:`INNER_GAIN` further in; None otherwise. The inner face pushes the other way, its hand
         standing over the block rather than beside it: 2 to 3 cm further right, where the hand is headed
         7 to 10 degrees less to the left."""
+        if abs(wrap_quarter(yaw)) > INNER_SQUARE:
+            return None
         outer = self.thumb_needed(target_xy, face)
         if outer > THUMB_LOW + OPEN_STOP_MARGIN:
             return None

@@ -285,6 +285,9 @@ def test_the_inner_face_serves_a_square_target_at_the_far_left(env):
     plan = hand.plan_push(hand.look(), far_left, inner, inner=True)
     assert plan.inner and plan.direction @ np.array([0.0, 1.0]) == pytest.approx(1.0)  # it pushes to the left
     assert hand.inner_face(centre, 0.0, hand.push_face(centre, 0.0)) is None  # in the middle the outer face serves
+    turned = np.radians(60.0)  # at the centre its thumb is at the open stop too: left to the outer face (held-out)
+    assert hand.thumb_needed(centre, hand.push_face(centre, turned)) <= THUMB_LOW + OPEN_STOP_MARGIN
+    assert hand.inner_face(centre, turned, hand.push_face(centre, turned)) is None
 
 
 def test_the_hand_turns_left_as_it_goes_left(env):
