@@ -11,11 +11,11 @@ side, and a cube pushed by a flat face turns until a face lies flat on it: a pus
 at the target's heading (the closure servoed against the hand's measured heading, every step) moves the
 block along the face's normal and leaves it turned as the target. That push is the skill every block
 target ends with; where the block is not already behind its target on that line, a grasp first slides
-it there (:meth:`BlockHand.place`). Where the outer face would need the thumb at its open stop, the
-thumb's inner face pushes instead (the block between thumb and palm, pushed the other way), its hand
-standing further right and so headed less to the left (:meth:`BlockHand.inner_face`). Where no heading
-the thumb reaches is the target's, a turn through (:meth:`BlockHand.turn_through`) pushes the block past
-that heading first and then back through it.
+it there (:meth:`BlockHand.place`). Where the outer face would need the thumb at its open stop and the
+target is near square, the thumb's inner face pushes instead (the block between thumb and palm, pushed
+the other way), its hand standing further right and so headed less to the left
+(:meth:`BlockHand.inner_face`). Where no heading the thumb reaches is the target's, a turn through
+(:meth:`BlockHand.turn_through`) pushes the block past that heading first and then back through it.
 
 Skills are generators: each ``next()`` gives the ee_delta action for the current step, the hand's fields
 having been updated by :meth:`BlockHand.observe`. Hand paths are legs of the execution layer
