@@ -405,18 +405,18 @@ class BlockHand:
         """The heading (rad) of the thumb's inner face for the push that leaves the block at ``target_xy``
         (2,) turned ``yaw`` (rad) within :data:`INNER_SQUARE` of square, where the outer face's push (at
         ``face``) would hold the thumb within :data:`OPEN_STOP_MARGIN` of its open stop or past it, and the
-        inner face keeps it at least
-        :data:`INNER_GAIN` further in; None otherwise. The inner face pushes the other way, its hand
-        standing over the block rather than beside it: 2 to 3 cm further right, where the hand is headed
-        7 to 10 degrees less to the left."""
-        if abs(wrap_quarter(yaw)) > INNER_SQUARE:
+        inner face keeps it at least :data:`INNER_GAIN` further in; None otherwise. The inner face pushes the
+        other way, its hand standing over the block rather than beside it: 2 to 3 cm further right, where the
+        hand is headed 7 to 10 degrees less to the left."""
+        square = wrap_quarter(yaw)
+        if abs(square) > INNER_SQUARE:
             return None
         outer = self.thumb_needed(target_xy, face)
         if outer > THUMB_LOW + OPEN_STOP_MARGIN:
             return None
         best = None
         for k in range(-2, 3):
-            candidate = wrap_quarter(yaw) + k * np.pi / 2
+            candidate = square + k * np.pi / 2
             thumb = self.thumb_needed(target_xy, candidate, inner=True)
             reached = THUMB_LOW <= thumb <= INNER_THUMB_HIGH and thumb >= outer + INNER_GAIN
             if reached and (best is None or thumb > best[0]):
