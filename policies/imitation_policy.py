@@ -7,7 +7,8 @@ table and its turn), it looks at its own block with the overhead camera, sets th
 moved and turned by the effect: the same at both of ``Imitate-v0``'s levels) and runs the skills:
 
 - approach: the hand over the block, held there;
-- move: the block grasped, slid over the table to the target and let go (:meth:`BlockHand.place`);
+- move: the block grasped, slid over the table to the target and let go (:meth:`BlockHand.place`),
+  unless the target is turned as the grasp cannot leave it (an inner push's or a turn through's);
 - push, rotate, and a move that left it off: a thumb push along the line through the target that
   leaves the block turned as the target (:meth:`BlockHand.push`), the block first slid behind the
   target on that line when it is not there (or too close to it to turn on the way).
@@ -190,7 +191,7 @@ class BlockImitation(ABC):
         face = self.hand.push_face(target, yaw)
         inner = self.hand.inner_face(target, yaw, face)  # None: the outer face's push
         first = None if inner is not None else self.hand.overturn_face(target, yaw, face)  # None: the usual push
-        if shown.action == "move" and inner is None:  # an inner push's target is one a grasp cannot leave it at
+        if shown.action == "move" and inner is None and first is None:  # a grasp leaves it turned as the hand
             yield from self.hand.place(block, target)
         for _ in range(MAX_ATTEMPTS):
             block = self.hand.look()

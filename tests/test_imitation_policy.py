@@ -101,6 +101,28 @@ def test_a_square_target_at_the_far_left_is_pushed_there_by_the_thumbs_inner_fac
     assert "inner push" in policy.skills and "push" not in policy.skills, policy.skills
 
 
+def test_a_move_whose_target_needs_a_turn_through_is_not_grasped_onto_it_first(env):
+    """A move to a target turned past the thumb's reach (validation episode 90021): a grasp would leave
+    the block turned as the hand, so the turn through's own run-up is the first skill, not a grasp at
+    the target."""
+    obs, info = env.reset(seed=90021)
+    assert env.get_wrapper_attr("true_demonstration")().action == "move"
+    policy = ExecutionCeiling(env)
+    policy.reset(obs, info)
+    while not policy.skills:
+        obs, *_ = env.step(policy(obs))
+    assert policy.skills[0] == "turn through", policy.skills
+
+
+@pytest.mark.slow
+def test_a_move_whose_target_needs_a_turn_through_ends_there(env):
+    """The same move, run to its end, reaches its target (missed while it was first grasped onto it)."""
+    policy = ExecutionCeiling(env)
+    result = run_episode(env, policy, 90021)
+    assert result.success, result
+    assert policy.skills[0] == "turn through" and "place" in policy.skills, policy.skills
+
+
 def test_the_thumbs_face_takes_the_asked_heading_within_reach_and_its_stop_beyond(env):
     obs, _ = env.reset(seed=SEEDS["push"])
     hand = BlockHand(env)
