@@ -216,7 +216,8 @@ def _track(args: argparse.Namespace) -> int:
                                 "--clutter, --noise, --depth and --lag")
     if not 0 <= args.lag <= MAX_LAG:
         raise InvalidInputError(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
-    args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "offsets")
+    args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "turned" if args.from_markers
+                                                else "offsets")
     with contextlib.ExitStack() as outputs:
         claimed = {name: outputs.enter_context(claimed_file(path, args.overwrite, what=name))
                    for name, path in (("report", args.json), ("video", args.video), ("figure", args.figure)) if path}
@@ -473,11 +474,12 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--depth", action="store_true",
                        help="an RGB-D camera: score each view's depth image too, as a structured-light sensor reads "
                             "it (noise and steps growing with distance, holes at edges); default: colour images only")
-    track.add_argument("--pose-proposal", choices=["offsets", "hand"],
-                       help="how particles pose the arm: offsets of every marker from the PHMM's mean, or the hand "
-                            "shifted and the shoulder and elbow generated from it (with --posture, by that posture "
-                            "model); default: offsets, and hand with --grid-model (each won on its validation "
-                            "recording)")
+    track.add_argument("--pose-proposal", choices=["offsets", "turned", "hand"],
+                       help="how particles pose the arm: offsets of every marker from the PHMM's mean, those offsets "
+                            "with the hand turned about the wrist by two persistent angles, or the hand shifted and "
+                            "the shoulder and elbow generated from it (with --posture, by that posture model); "
+                            "default: offsets, turned with --from-markers, and hand with --grid-model (each won on "
+                            "its validation recordings)")
     track.add_argument("--posture", type=_path,
                        help="a posture model file (PostureModel JSON) that poses the shoulder and elbow from the hand "
                             "(--pose-proposal hand)")

@@ -15,7 +15,16 @@ from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.tracking.action_tracker import ActionTracker
 from hoap_actions.tracking.grid_experiment import approach_tracking_models, grid_reaches, settling_frame
-from hoap_actions.tracking.poses import HandPoses, OffsetPoses, _arm_gain, _swivel, pose_proposal
+from hoap_actions.tracking.poses import (
+    HAND_TURN_MEMORY,
+    HandPoses,
+    OffsetPoses,
+    TurnedHandOffsets,
+    _arm_gain,
+    _swivel,
+    pose_proposal,
+    turn_hand,
+)
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
 
@@ -113,6 +122,50 @@ def test_the_swivel_turns_the_elbow_about_the_shoulder_wrist_line():
     np.testing.assert_allclose(_swivel(shoulder, elbow, wrist, np.zeros(50)), elbow, atol=1e-12)
     quarter = _swivel(np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), np.array([[0.0, 0.0, 2.0]]), np.array([np.pi / 2]))
     np.testing.assert_allclose(quarter, [[-1.0, 0.0, 0.0]], atol=1e-12)  # right-handed about +z
+
+
+def test_a_turned_hand_is_the_same_hand_turned_rigidly_about_the_wrist():
+    rng = np.random.default_rng(3)
+    hand = rng.normal(0.0, 0.05, (40, 12))
+    turn, roll = rng.uniform(-np.pi, np.pi, (2, 40))
+    turned = np.hstack([hand[:, :3], turn_hand(hand, turn, roll)]).reshape(40, 4, 3)
+    before = hand.reshape(40, 4, 3)
+    for a in range(4):  # every distance between the wrist, index tip, knuckle and thumb is kept
+        for b in range(a + 1, 4):
+            np.testing.assert_allclose(np.linalg.norm(turned[:, a] - turned[:, b], axis=1),
+                                       np.linalg.norm(before[:, a] - before[:, b], axis=1), rtol=1e-9)
+    np.testing.assert_allclose(turn_hand(hand, np.zeros(40), np.zeros(40)), hand[:, 3:], atol=1e-12)
+    # known answers: a quarter turn about the vertical (right-handed) takes +x to +y; a roll leaves the knuckle
+    # on its line and turns the thumb about it
+    square = np.array([[0, 0, 0, 0.1, 0, 0, 0.05, 0, 0, 0.05, -0.03, 0.0]])
+    np.testing.assert_allclose(turn_hand(square, np.array([np.pi / 2]), np.zeros(1)),
+                               [[0, 0.1, 0, 0, 0.05, 0, 0.03, 0.05, 0]], atol=1e-12)
+    np.testing.assert_allclose(turn_hand(square, np.zeros(1), np.array([np.pi / 2])),
+                               [[0.1, 0, 0, 0.05, 0, 0, 0.05, 0, -0.03]], atol=1e-12)
+
+
+def test_the_turned_hand_proposal_adds_two_persistent_angles_to_the_offsets(grid_models):
+    models, _ = grid_models
+    turned, offsets = pose_proposal("turned", models), OffsetPoses(models)
+    assert isinstance(turned, TurnedHandOffsets) and turned.dim == offsets.dim + 2
+    rng = np.random.default_rng(4)
+    states, phi = np.full(5, 7.0), np.tile([*models.classes[0].centre[:3], 0.05, 0.1, 0.025], (5, 1))
+    state = np.hstack([rng.normal(0.0, 0.01, (5, offsets.dim)), np.zeros((5, 2))])
+    np.testing.assert_allclose(turned.pose(0, states, phi, state), offsets.pose(0, states, phi, state[:, :-2]),
+                               atol=1e-12)  # no turn: the offsets' pose
+    state[:, -2] = 0.5
+    moved = turned.pose(0, states, phi, state) - offsets.pose(0, states, phi, state[:, :-2])
+    np.testing.assert_allclose(moved[:, :9], 0.0, atol=1e-12)  # shoulder, elbow and wrist stay
+    assert np.all(np.linalg.norm(moved[:, 9:], axis=1) > 0.0)
+    # the angles drift as an AR(1) process whose stationary spread is turn_sd
+    walk = np.zeros((20000, turned.dim))
+    for _ in range(150):
+        walk = turned.drift(0, np.full(20000, 3.0), walk, rng)
+    expected = np.asarray(turned.turn_sd) * np.sqrt(1.0 - HAND_TURN_MEMORY ** (2 * 150))
+    np.testing.assert_allclose(walk[:, -2:].std(axis=0), expected, rtol=0.03)
+    for bad in ((0.1,), (0.1, -0.2), (np.nan, 0.1)):
+        with pytest.raises(InvalidInputError, match="turn_sd takes two"):
+            TurnedHandOffsets(models, bad)
 
 
 def test_the_arm_follows_a_hand_shift_as_the_state_s_full_gaussian_says(grid_models):

@@ -302,7 +302,7 @@ class _Observer:
 
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
                           seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True,
-                          pose_proposal: str = "offsets", posture: PostureModel | None = None,
+                          pose_proposal: str = "turned", posture: PostureModel | None = None,
                           lag: int = 0, object_place_m: float | None = OBJECT_PLACE_M,
                           far_leap_share: float = FAR_LEAP_SHARE) -> TrackResult:
     """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
@@ -311,7 +311,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     gives the tracker the recorded object's centre, as the camera's block locator does, and ``object_place_m``
     scores its place against each particle's class (None: its motion only, as from the camera); ``far_leap_share``
     (:class:`ActionTracker`) lets a few particles a frame leap anywhere ahead in their chain;
-    ``pose_proposal``, ``posture`` and ``lag`` as for :func:`track_episode`."""
+    ``pose_proposal``, ``posture`` and ``lag`` as for :func:`track_episode` (here the hand's turn is posed by
+    default: the markers show it)."""
     ep = _bridged_episode(models, demos, episode)
     scene = DemoScene(body_height_m=demos.demonstrator["height_m"])
     try:

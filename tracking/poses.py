@@ -8,6 +8,11 @@ learned spread:
 * ``"offsets"`` (the first design): the mean markers plus an offset of every coordinate (18 numbers), each
   drifting within its own standard deviation (the diagonal of the state's covariance). The shoulder, elbow
   and hand stray independently, so most particles pose an arm no person holds.
+* ``"turned"``: the offsets, and the hand turned as a whole about the wrist by two persistent angles (a
+  turn about the vertical, a roll about the wrist-knuckle line): a person pushes or carries with the hand
+  turned as the task asks, which no class's mean says and independent offsets reach only by chance. Used
+  from motion capture, where the hand's markers show its turn; from one camera it loosens the class
+  posterior more than it poses the hand (validation).
 * ``"hand"`` (poses generated from the hand): the hand (wrist, index tip, knuckle, thumb) is the state's
   mean moved by a persistent 3-D shift; the shoulder and elbow follow from the hand, by the
   :class:`~hoap_actions.primitives.hmm.posture.PostureModel` when the models carry one, otherwise by the
@@ -23,6 +28,7 @@ from __future__ import annotations
 from typing import Protocol
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import InvalidInputError
@@ -30,11 +36,14 @@ from hoap_actions.primitives.hmm.posture import MIN_POINTING_M
 from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.tracking.tracking_models import TrackingModels
 
-__all__ = ["POSE_PROPOSALS", "HandPoses", "OffsetPoses", "PoseProposal", "mean_poses", "pose_proposal"]
+__all__ = ["POSE_PROPOSALS", "HandPoses", "OffsetPoses", "PoseProposal", "TurnedHandOffsets", "mean_poses",
+           "pose_proposal"]
 
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose state
 SWIVEL_SD_RAD = 0.1  # rad, stationary sd of the elbow's turn about the shoulder-wrist line (validation)
 TRUNK = True  # shoulder and elbow shift together as well (validation)
+HAND_TURN_SD_RAD = (0.3, 0.4)  # rad, stationary sd of the hand's turn about the vertical and its roll (validation)
+HAND_TURN_MEMORY = 0.97  # per-frame AR(1) coefficient of the hand's turn: a hand held turned for seconds
 ARM = slice(0, 6)  # shoulder and elbow, xyz each, in the recordings' marker order
 HAND = slice(6, 18)  # wrist, index tip, index knuckle, thumb tip
 HAND_MARKERS = 4
@@ -110,6 +119,51 @@ class OffsetPoses:
 
     def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray) -> np.ndarray:
         return _mean_poses(self._classes[class_id], states, phi, self._n_markers) + pose_state
+
+
+class TurnedHandOffsets(OffsetPoses):
+    """The offsets, then the hand (index tip, knuckle, thumb) turned rigidly about the wrist: by a persistent
+    angle about the vertical, then by a roll about the wrist-knuckle line. The pose state is the 18 offsets
+    and the two angles (rad), each angle drifting within ``turn_sd`` (:data:`HAND_TURN_SD_RAD`)."""
+
+    name = "turned"
+
+    def __init__(self, models: TrackingModels, turn_sd: tuple[float, float] = HAND_TURN_SD_RAD) -> None:
+        if tuple(models.marker_names) != MARKER_NAMES:
+            raise InvalidInputError(f"a turned hand needs the markers {list(MARKER_NAMES)}; these models have "
+                                    f"{list(models.marker_names)}")
+        if len(turn_sd) != 2 or not all(np.isfinite(sd) and sd >= 0 for sd in turn_sd):
+            raise InvalidInputError(f"turn_sd takes two standard deviations >= 0 (rad); got {turn_sd!r}")
+        super().__init__(models)
+        self._offsets = self.dim
+        self.dim = self._offsets + 2
+        self.turn_sd = np.asarray(turn_sd, dtype=float)
+
+    def drift(self, class_id: int, states: np.ndarray, pose_state: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        offsets = super().drift(class_id, states, pose_state[:, :self._offsets], rng)
+        noise = rng.normal(0.0, 1.0, (len(pose_state), 2)) * self.turn_sd
+        turn = HAND_TURN_MEMORY * pose_state[:, self._offsets:] + np.sqrt(1.0 - HAND_TURN_MEMORY**2) * noise
+        return np.hstack([offsets, turn])
+
+    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray) -> np.ndarray:
+        pose = super().pose(class_id, states, phi, pose_state[:, :self._offsets])
+        pose[:, HAND.start + 3:] = turn_hand(pose[:, HAND], *pose_state[:, self._offsets:].T)
+        return pose
+
+
+def turn_hand(hand: np.ndarray, turn: np.ndarray, roll: np.ndarray) -> np.ndarray:
+    """The index tip, knuckle and thumb ``(n, 9)`` of hands ``(n, 12)`` (wrist first) turned rigidly about the
+    wrist: by ``turn`` (n,) rad about the vertical, then by ``roll`` (n,) rad about the turned wrist-knuckle
+    line (right-handed)."""
+    wrist = hand[:, :3]
+    points = hand[:, 3:].reshape(-1, 3, 3) - wrist[:, None]
+    about_vertical = Rotation.from_rotvec(np.outer(turn, [0.0, 0.0, 1.0]))
+    points = np.stack([about_vertical.apply(points[:, k]) for k in range(3)], axis=1)
+    knuckle = points[:, 1]
+    axis = knuckle / np.maximum(np.linalg.norm(knuckle, axis=1, keepdims=True), 1e-9)
+    about_knuckle = Rotation.from_rotvec(axis * roll[:, None])
+    points = np.stack([about_knuckle.apply(points[:, k]) for k in range(3)], axis=1)
+    return (points + wrist[:, None]).reshape(-1, 9)
 
 
 class HandPoses:
@@ -198,7 +252,7 @@ def _swivel(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angle: n
     return shoulder + v * cos + np.cross(axis, v) * sin + along * (1.0 - cos)
 
 
-POSE_PROPOSALS = {"offsets": OffsetPoses, "hand": HandPoses}
+POSE_PROPOSALS = {"offsets": OffsetPoses, "turned": TurnedHandOffsets, "hand": HandPoses}
 
 
 def pose_proposal(name: str, models: TrackingModels) -> PoseProposal:
