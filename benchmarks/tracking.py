@@ -66,6 +66,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--no-hand-turn", action="store_true",
                         help="from markers: no persistent turn of the hand in the particles' poses (the tracker "
                              "before it)")
+    parser.add_argument("--no-pose-sharpening", action="store_true",
+                        help="from markers: the pose estimate weighs particles by the filter's own weights (the "
+                             "tracker before the sharpened estimate)")
     parser.add_argument("--no-object-place", action="store_true",
                         help="with --from-markers: score the block's motion only, not its place against each "
                              "particle's class (the tracker before the place term)")
@@ -82,6 +85,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error("--no-object-place goes with --from-markers (the camera's tracker has no place term)")
     if args.no_hand_turn and not args.from_markers:
         parser.error("--no-hand-turn goes with --from-markers (the camera's tracker poses no turn of the hand)")
+    if args.no_pose_sharpening and not args.from_markers:
+        parser.error("--no-pose-sharpening goes with --from-markers (the camera's estimate is not sharpened)")
     if args.no_far_leaps and not args.from_markers:
         parser.error("--no-far-leaps goes with --from-markers (the camera's tracker makes no far leaps)")
     if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only or args.depth):
@@ -92,7 +97,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
                       side_camera=False, from_markers=False, depth=False, lag=0, object_place=True,
-                      far_leaps=True, hand_turn=True) -> dict:
+                      far_leaps=True, hand_turn=True, pose_sharpening=True) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
@@ -106,7 +111,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
             result = track_markers_episode(models, demos, index, particles=particles, seed=0, lag=lag,
                                            **({} if object_place else {"object_place_m": None}),
                                            **({} if far_leaps else {"far_leap_share": 0.0}),
-                                           **({} if hand_turn else {"pose_proposal": "offsets"}))
+                                           **({} if hand_turn else {"pose_proposal": "offsets"}),
+                                           **({} if pose_sharpening else {"pose_sharpening": 1.0}))
         else:
             result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
                                    image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera),
@@ -217,7 +223,8 @@ def main(argv: list[str] | None = None) -> dict:
             store[seed] = recording_figures(models, demos, args.episodes, args.particles, args.clutter, args.noise,
                                             silhouette, args.side_camera, args.from_markers,
                                             args.depth and silhouette, args.lag, not args.no_object_place,
-                                            not args.no_far_leaps, not args.no_hand_turn)
+                                            not args.no_far_leaps, not args.no_hand_turn,
+                                            not args.no_pose_sharpening)
     summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
@@ -226,6 +233,7 @@ def main(argv: list[str] | None = None) -> dict:
                      "object_place": args.from_markers and not args.no_object_place,
                      "far_leaps": args.from_markers and not args.no_far_leaps,
                      "hand_turn": args.from_markers and not args.no_hand_turn,
+                     "pose_sharpening": args.from_markers and not args.no_pose_sharpening,
                      "models": "shipped default models" if args.models is None else str(args.models),
                      "filter_seed": 0},
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},

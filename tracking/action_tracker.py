@@ -67,7 +67,7 @@ from hoap_actions.tracking.image_evidence import contour_misfit, depth_misfit, s
 from hoap_actions.tracking.object_evidence import OBJECT_MOVING_M, OBJECT_STILL_M, ObjectEvidence
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
-from hoap_actions.tracking.smoothing import MAX_LAG, ParticleLineage, SmoothedFrame
+from hoap_actions.tracking.smoothing import MAX_LAG, ParticleLineage, SmoothedFrame, tilted
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel, Projector
 
@@ -105,6 +105,7 @@ SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off 
 DEPTH_SIGMA_M = 0.02  # sigma of the depth term (m of truncated depth misfit; validation recording)
 MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
 # collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
+MARKERS_POSE_SHARPENING = 16.0  # the power of the markers' likelihood in the pose estimate from motion capture
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
 EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
 
@@ -188,6 +189,11 @@ class ActionTracker:
         particles per frame, in manipulations and removes, whose leap goes anywhere in the rest of their
         chain (0, the default: none); :func:`~hoap_actions.tracking.track_markers_episode` uses
         :data:`FAR_LEAP_SHARE`.
+    pose_sharpening
+        the pose estimate (each frame's and the smoothed one) weighs the particles by the frame's pose likelihood
+        raised to this power rather than to 1, the class posterior and the filter staying as they are: a likelihood
+        broad enough not to collapse the classes reads the pose from too many particles. 1 (the default) off;
+        :func:`~hoap_actions.tracking.track_markers_episode` uses :data:`MARKERS_POSE_SHARPENING`.
 
     Attributes
     ----------
@@ -203,7 +209,8 @@ class ActionTracker:
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
                  depth_sigma_m: float = DEPTH_SIGMA_M, lag: int | None = None,
-                 object_place_m: float | None = None, far_leap_share: float = 0.0) -> None:
+                 object_place_m: float | None = None, far_leap_share: float = 0.0,
+                 pose_sharpening: float = 1.0) -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
@@ -219,6 +226,9 @@ class ActionTracker:
         if not (isinstance(far_leap_share, (int, float)) and not isinstance(far_leap_share, bool)
                 and 0.0 <= far_leap_share <= 1.0):
             raise InvalidInputError(f"far_leap_share must be a share in [0, 1]; got {far_leap_share!r}")
+        if isinstance(pose_sharpening, bool) or not (isinstance(pose_sharpening, (int, float))
+                                                     and 1.0 <= pose_sharpening < np.inf):
+            raise InvalidInputError(f"pose_sharpening must be a finite number >= 1; got {pose_sharpening!r}")
         if lag is not None and (isinstance(lag, bool) or not isinstance(lag, (int, np.integer))
                                 or not 0 <= lag <= MAX_LAG):
             raise InvalidInputError(f"lag must be None or an int in 0..{MAX_LAG} (frames); got {lag!r}")
@@ -238,6 +248,7 @@ class ActionTracker:
         self.silhouette_sigma = float(silhouette_sigma)
         self.depth_sigma_m = float(depth_sigma_m)
         self.lag = None if lag is None else int(lag)
+        self.pose_sharpening = float(pose_sharpening)
         self.far_leap_share = float(far_leap_share)
         self._evidence = ObjectEvidence(models, object_still_m and float(object_still_m), float(object_moving_m),
                                         object_place_m and float(object_place_m))
@@ -380,6 +391,7 @@ class ActionTracker:
         resampling when due; a frame that no particle explains starts the filter again from its prior."""
         if self._object is not None:  # where the object was when a particle's class began: here, if not seen before
             self.object_at[~np.isfinite(self.object_at[:, 0])] = self._object
+        tilt = (self.pose_sharpening - 1.0) * likelihood if self.pose_sharpening != 1.0 else None
         likelihood = (likelihood + self._evidence.motion_log_likelihood(self.class_id, self.resting)
                       + self._evidence.place_log_likelihood(self.class_id, self.state, self.resting, self.object_at))
         reinitialised = not np.any(np.isfinite(likelihood))
@@ -389,14 +401,15 @@ class ActionTracker:
             self._draw_prior()
             markers = self.markers()
             likelihood = np.zeros(self.n_particles)
+            tilt = None
         with np.errstate(divide="ignore"):  # a weight that underflowed to 0 stays 0 (log -inf), never NaN
             log_weights = likelihood + np.log(self.weights)
         weights = np.exp(log_weights - log_weights.max())
         weights /= weights.sum()
-        frame = self._summary(weights, markers, float(likelihood.max()), reinitialised)
+        frame = self._summary(weights, markers, float(likelihood.max()), reinitialised, tilt)
         self.weights = weights
         if self._lineage is not None:
-            self._smoothed += self._lineage.push(self._frames_seen, markers, self.class_id, weights)
+            self._smoothed += self._lineage.push(self._frames_seen, markers, self.class_id, weights, tilt)
         self._frames_seen += 1
         if 1.0 / np.sum(weights**2) < RESAMPLE_BELOW * self.n_particles:
             self._resample(weights)
@@ -537,7 +550,8 @@ class ActionTracker:
                 total -= depth_misfit(self.body, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
         return total
 
-    def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool) -> TrackedFrame:
+    def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool,
+                 tilt: np.ndarray | None = None) -> TrackedFrame:
         best = int(np.argmax(weights))
         classes, of_class = np.unique(self.class_id, return_inverse=True)
         probabilities = dict(zip(classes.tolist(), np.bincount(of_class, weights).tolist()))
@@ -553,7 +567,7 @@ class ActionTracker:
             class_id=int(self.class_id[best]), state=int(self.state[best]),
             phi=np.r_[self.start[best], self.end[best]], class_probabilities=probabilities, end_mean=mean,
             end_std=std, entropy=max(0.0, float(-np.sum(p * np.log(p)))),
-            markers=np.sum(weights[:, None, None] * markers, axis=0),
+            markers=np.sum(tilted(weights, tilt)[:, None, None] * markers, axis=0),
             log_likelihood=best_ll, reinitialised=reinitialised, class_ends=class_ends)
 
     def _resample(self, weights: np.ndarray) -> None:

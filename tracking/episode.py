@@ -25,7 +25,13 @@ from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
-from hoap_actions.tracking.action_tracker import FAR_LEAP_SHARE, MARKER_SIGMA_M, ActionTracker, TrackedFrame
+from hoap_actions.tracking.action_tracker import (
+    FAR_LEAP_SHARE,
+    MARKER_SIGMA_M,
+    MARKERS_POSE_SHARPENING,
+    ActionTracker,
+    TrackedFrame,
+)
 from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.smoothing import SmoothedFrame
@@ -145,7 +151,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                   silhouette: bool = True, object_cue: bool = True,
                   progress: Callable[[int, int], None] | None = None, pose_proposal: str = "offsets",
                   posture: PostureModel | None = None, depth_sensor: DepthSensor | None = None,
-                  lag: int = 0) -> TrackResult:
+                  lag: int = 0, pose_sharpening: float = 1.0) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
@@ -156,14 +162,16 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     ``pose_proposal`` and ``posture``: how particles pose the arm (:class:`ActionTracker`). ``depth_sensor``
     adds each view's depth image as that sensor reads it (an RGB-D camera; its errors drawn from ``seed``,
     apart from the image noise's) to the evidence. ``lag``: frames of fixed-lag smoothing, scored beside the
-    filter's own estimates (:mod:`~hoap_actions.tracking.smoothing`)."""
+    filter's own estimates (:mod:`~hoap_actions.tracking.smoothing`). ``pose_sharpening``: as
+    :class:`ActionTracker`'s (1: off)."""
     ep = _bridged_episode(models, demos, episode)
     views = (camera, *more_cameras)
     frames, kept, pictures = [], [], []
     with _Renderer(demos, episode, views, clutter, image_noise, seed, depth_sensor) as renderer:
         body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
-                                pose_proposal=pose_proposal, random_state=seed, lag=lag or None)
+                                pose_proposal=pose_proposal, random_state=seed, lag=lag or None,
+                                pose_sharpening=pose_sharpening)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             ObjectLocator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
@@ -304,7 +312,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
                           seed: int = 0, sigma_m: float = MARKER_SIGMA_M, object_cue: bool = True,
                           pose_proposal: str = "turned", posture: PostureModel | None = None,
                           lag: int = 0, object_place_m: float | None = OBJECT_PLACE_M,
-                          far_leap_share: float = FAR_LEAP_SHARE) -> TrackResult:
+                          far_leap_share: float = FAR_LEAP_SHARE,
+                          pose_sharpening: float = MARKERS_POSE_SHARPENING) -> TrackResult:
     """Track episode ``episode`` of ``demos`` from its recorded markers instead of images
     (:meth:`ActionTracker.step_markers`): recognition from motion capture, and the filter's error with
     vision taken out (scored as :func:`track_episode`'s, against the gap-bridged markers). ``object_cue``
@@ -323,7 +332,7 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, DEMONSTRATOR_CAMERA,
                             n_particles=particles, pose_proposal=pose_proposal, random_state=seed,
                             lag=lag or None, object_place_m=object_place_m if object_cue else None,
-                            far_leap_share=far_leap_share)
+                            far_leap_share=far_leap_share, pose_sharpening=pose_sharpening)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
     frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]

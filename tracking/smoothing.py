@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MAX_LAG", "ParticleLineage", "SmoothedFrame"]
+__all__ = ["MAX_LAG", "ParticleLineage", "SmoothedFrame", "tilted"]
 
 MAX_LAG = 1000  # frames (10 s at 100 Hz); each kept frame holds every particle's pose
 
@@ -37,22 +37,24 @@ class SmoothedFrame:
 
 
 class ParticleLineage:
-    """The last ``lag`` frames of every particle's ancestry: poses ``(n, M, 3)`` and class ids ``(n,)``."""
+    """The last ``lag`` frames of every particle's ancestry: poses ``(n, M, 3)``, class ids ``(n,)`` and each pose's
+    tilt ``(n,)`` (log factor, or None) that the pose estimate (not the class posterior) multiplies its weight by."""
 
     def __init__(self, lag: int) -> None:
         self.lag = lag
-        self._past: deque[tuple[int, np.ndarray, np.ndarray]] = deque()
+        self._past: deque[tuple[int, np.ndarray, np.ndarray, np.ndarray | None]] = deque()
 
-    def push(self, frame: int, markers: np.ndarray, class_ids: np.ndarray, weights: np.ndarray) -> list[SmoothedFrame]:
+    def push(self, frame: int, markers: np.ndarray, class_ids: np.ndarray, weights: np.ndarray,
+             tilt: np.ndarray | None = None) -> list[SmoothedFrame]:
         """Record frame ``frame``'s particles (before resampling) and return the frame whose lag has passed, read
         with this frame's ``weights`` (none while fewer than ``lag`` frames followed it)."""
-        self._past.append((frame, markers, class_ids.copy()))
+        self._past.append((frame, markers, class_ids.copy(), None if tilt is None else tilt.copy()))
         return [self._estimate(*self._past.popleft(), weights)] if len(self._past) > self.lag else []
 
     def resampled(self, ancestors: np.ndarray) -> None:
         """Particle ``i`` is now a copy of particle ``ancestors[i]``: its past goes with it."""
-        for k, (frame, markers, class_ids) in enumerate(self._past):
-            self._past[k] = (frame, markers[ancestors], class_ids[ancestors])
+        for k, (frame, markers, class_ids, tilt) in enumerate(self._past):
+            self._past[k] = (frame, markers[ancestors], class_ids[ancestors], None if tilt is None else tilt[ancestors])
 
     def flush(self, weights: np.ndarray) -> list[SmoothedFrame]:
         """Every frame still held, read with ``weights`` (the last frame's), and forget them."""
@@ -61,7 +63,22 @@ class ParticleLineage:
         return out
 
     @staticmethod
-    def _estimate(frame: int, markers: np.ndarray, class_ids: np.ndarray, weights: np.ndarray) -> SmoothedFrame:
+    def _estimate(frame: int, markers: np.ndarray, class_ids: np.ndarray, tilt: np.ndarray | None,
+                  weights: np.ndarray) -> SmoothedFrame:
         classes, of_class = np.unique(class_ids, return_inverse=True)
-        return SmoothedFrame(frame, np.einsum("n,nmk->mk", weights, markers),
+        return SmoothedFrame(frame, np.einsum("n,nmk->mk", tilted(weights, tilt), markers),
                              dict(zip(classes.tolist(), np.bincount(of_class, weights).tolist())))
+
+
+def tilted(weights: np.ndarray, tilt: np.ndarray | None) -> np.ndarray:
+    """``weights`` (n,) times ``exp(tilt)`` (log factors, n), normalised; ``weights`` as they are for no tilt, or
+    when the tilt leaves no weight (every weighted particle's tilt -inf)."""
+    if tilt is None:
+        return weights
+    with np.errstate(divide="ignore"):
+        log_weights = np.log(weights) + tilt
+    top = np.max(log_weights)
+    if not np.isfinite(top):
+        return weights
+    out = np.exp(log_weights - top)
+    return out / out.sum()
