@@ -28,7 +28,6 @@ from __future__ import annotations
 from typing import Protocol
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import InvalidInputError
@@ -155,15 +154,11 @@ def turn_hand(hand: np.ndarray, turn: np.ndarray, roll: np.ndarray) -> np.ndarra
     """The index tip, knuckle and thumb ``(n, 9)`` of hands ``(n, 12)`` (wrist first) turned rigidly about the
     wrist: by ``turn`` (n,) rad about the vertical, then by ``roll`` (n,) rad about the turned wrist-knuckle
     line (right-handed)."""
-    wrist = hand[:, :3]
-    points = hand[:, 3:].reshape(-1, 3, 3) - wrist[:, None]
-    about_vertical = Rotation.from_rotvec(np.outer(turn, [0.0, 0.0, 1.0]))
-    points = np.stack([about_vertical.apply(points[:, k]) for k in range(3)], axis=1)
-    knuckle = points[:, 1]
-    axis = knuckle / np.maximum(np.linalg.norm(knuckle, axis=1, keepdims=True), 1e-9)
-    about_knuckle = Rotation.from_rotvec(axis * roll[:, None])
-    points = np.stack([about_knuckle.apply(points[:, k]) for k in range(3)], axis=1)
-    return (points + wrist[:, None]).reshape(-1, 9)
+    wrist, points = hand[:, :3], [hand[:, k:k + 3] for k in (3, 6, 9)]
+    above = wrist + np.array([0.0, 0.0, 1.0])
+    points = [_swivel(wrist, point, above, turn) for point in points]
+    knuckle = points[1]
+    return np.hstack([_swivel(wrist, point, knuckle, roll) for point in points])
 
 
 class HandPoses:
