@@ -10,9 +10,14 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 
-__all__ = ["MAX_IMAGE_SIDE", "Camera", "CameraImage", "check_image_size"]
+__all__ = ["MAX_IMAGE_SIDE", "PIXEL_SAMPLE_UV", "Camera", "CameraImage", "check_image_size"]
 
 MAX_IMAGE_SIDE = 4096  # px, largest camera width or height: TinyRenderer allocates the whole frame up front
+# Where in the continuous image of Camera.project TinyRenderer samples pixel (row r, column c):
+# at (c + 0, r + 1), not at the pixel's centre (c + 0.5, r + 0.5); measured on the robot's pegs and holes
+# (seeds 0-49: centre sampling put every one 0.6 mm, half a pixel, off along both axes) and on the
+# demonstration's block (paper 300: its top face one row above where project() puts it).
+PIXEL_SAMPLE_UV = (0.0, 1.0)
 
 
 BYTES_PER_PIXEL = 64
@@ -111,6 +116,11 @@ class Camera:
         u = (ndc[:, 0] + 1.0) * 0.5 * self.width
         v = (1.0 - ndc[:, 1]) * 0.5 * self.height
         return np.c_[u, v]
+
+    def pixels(self, points: np.ndarray) -> np.ndarray:
+        """Where world points ``(N, 3)`` show in the rendered image, as (column, row) coordinates ``(N, 2)``
+        whose rounding is the pixel's index: :meth:`project` less :data:`PIXEL_SAMPLE_UV`."""
+        return self.project(points) - np.asarray(PIXEL_SAMPLE_UV)
 
 
 @dataclass(frozen=True)

@@ -52,7 +52,7 @@ def annotated_frames(demonstration: Demonstration, markers: np.ndarray | None, m
     for t, frame in enumerate(frames):
         image = np.ascontiguousarray(frame).copy()
         if markers is not None and np.isfinite(markers[t]).all():
-            pixels = np.round(demonstration.camera.project(markers[t])).astype(np.int32)
+            pixels = np.round(demonstration.camera.pixels(markers[t])).astype(np.int32)
             for a, b in links:
                 cv2.line(image, tuple(map(int, pixels[a])), tuple(map(int, pixels[b])), ARM_COLOUR, 2, cv2.LINE_AA)
             for point in pixels:

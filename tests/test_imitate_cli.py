@@ -71,7 +71,7 @@ def test_the_arm_is_drawn_where_the_camera_sees_its_markers():
     markers[:, :, 1] = np.linspace(-0.2, 0.2, 6)
     markers[1] = np.nan  # a frame without an estimate is left bare
     drawn = annotated_frames(shown, markers, names, [])
-    u, v = np.round(camera.project(markers[0, 1])[0]).astype(int)
+    u, v = np.round(camera.pixels(markers[0, 1])[0]).astype(int)
     assert drawn[0][v, u].any() and not drawn[1].any()
     with pytest.raises(InvalidInputError, match=r"\(T, M, 3\)"):
         annotated_frames(shown, markers[:1], names, [])

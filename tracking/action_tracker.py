@@ -253,7 +253,7 @@ class ActionTracker:
         self._evidence = ObjectEvidence(models, object_still_m and float(object_still_m), float(object_moving_m),
                                         object_place_m and float(object_place_m))
         self._rng = np.random.default_rng(random_state)
-        self._object: np.ndarray | None = None
+        self._object: np.ndarray | None = None  # where the object was last seen
         self._ids = np.array(sorted(models.classes))
         self._manipulations = self._evidence.manipulations
         self._n_markers = len(models.marker_names)
@@ -299,6 +299,7 @@ class ActionTracker:
     def reset(self) -> None:
         """Start a new track: particles drawn from the prior (:meth:`_draw_prior`), no frame seen."""
         self._lineage = None if self.lag is None else ParticleLineage(self.lag)
+        self._object = None
         self._smoothed: list[SmoothedFrame] = []
         self._frames_seen = 0
         self._draw_prior()
@@ -345,15 +346,17 @@ class ActionTracker:
     def step(self, edges: np.ndarray | Sequence[np.ndarray],
              foreground: np.ndarray | Sequence[np.ndarray] | None = None,
              object_position: np.ndarray | None = None,
-             depth: np.ndarray | Sequence[np.ndarray] | None = None) -> TrackedFrame:
+             depth: np.ndarray | Sequence[np.ndarray] | None = None, object_whole: bool = True) -> TrackedFrame:
         """Propagate, weigh by the edge image(s) (one per camera, as from :func:`edge_image`) and, when given,
         the foreground mask(s) (:class:`~hoap_actions.vision.silhouette.BackgroundSubtractor`) and depth
         image(s) (m along each camera's view axis, NaN where not measured), resample.
-        ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen)."""
+        ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen);
+        ``object_whole`` False: it is partly hidden (a hand over it), its sighting evidence of motion only, goals
+        still drawn where it was last seen whole."""
         images = self._per_camera(edges, "edge image", _within_unit_range)
         masks = None if foreground is None else self._per_camera(foreground, "foreground mask", _within_unit_range)
         depths = None if depth is None else self._per_camera(depth, "depth image", _depths_or_holes)
-        self._see_object(object_position)
+        self._see_object(object_position, bool(object_whole))
         self._propagate()
         markers = self.markers()
         return self._weigh(markers, self._log_likelihood(markers, images, masks, depths))
@@ -376,14 +379,17 @@ class ActionTracker:
         squared = np.sum((markers[:, seen] - observed[seen]) ** 2, axis=(1, 2))
         return self._weigh(markers, -squared / (2.0 * sigma_m**2))
 
-    def _see_object(self, object_position: np.ndarray | None) -> None:
-        """Check and remember where the object is seen this frame (None: not seen)."""
+    def _see_object(self, object_position: np.ndarray | None, whole: bool = True) -> None:
+        """Check where the object is seen this frame (None: not seen) and remember it: its motion evidence takes
+        this frame's sighting, the goals drawn at it the last whole one (a block under the hand is where it was
+        last seen whole)."""
         if object_position is not None:
             object_position = np.asarray(object_position, dtype=float)
             if object_position.shape != (3,) or not np.all(np.isfinite(object_position)):
                 raise InvalidInputError(f"object_position must be a finite (3,) position in m or None; "
                                         f"got {object_position!r}")
-        self._object = object_position
+            if whole:
+                self._object = object_position
         self._evidence.see(object_position)
 
     def _weigh(self, markers: np.ndarray, likelihood: np.ndarray) -> TrackedFrame:

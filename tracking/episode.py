@@ -172,8 +172,9 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
                                 pose_proposal=pose_proposal, random_state=seed, lag=lag or None,
                                 pose_sharpening=pose_sharpening)
+        half = renderer.object_half_size_m
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
-                            ObjectLocator(camera, renderer.object_half_size_m) if object_cue else None)
+                            ObjectLocator(camera, half, cube_half_size_m=half) if object_cue else None)
         for t in range(ep.T):
             images = renderer.frame(ep, t)
             frames.append(observe(images, renderer.depths()))
@@ -224,7 +225,8 @@ def track_frames(tracker: ActionTracker, rendered: RenderedFrames, silhouette: b
     """Track already rendered frames: each frame's belief, the wall time of edge images, masks, block and
     filter (s), and (``keep_edges``) the first view's edge images."""
     observe = _Observer(tracker, rendered.backgrounds if silhouette else None,
-                        ObjectLocator(rendered.views[0], rendered.object_half_size_m) if object_cue else None)
+                        ObjectLocator(rendered.views[0], rendered.object_half_size_m,
+                                      cube_half_size_m=rendered.object_half_size_m) if object_cue else None)
     frames, edges = [], []
     for images in rendered.images:
         frames.append(observe(images))
@@ -289,7 +291,7 @@ class _Renderer:
 
 class _Observer:
     """One frame's camera images into one tracker step (edge images, foreground masks against the empty table,
-    the block), timed; ``edges`` keeps the last frame's edge images."""
+    the block's sighting, whole or partly hidden), timed; ``edges`` keeps the last frame's edge images."""
 
     def __init__(self, tracker: ActionTracker, backgrounds: list[np.ndarray] | None,
                  locate: ObjectLocator | None) -> None:
@@ -303,7 +305,8 @@ class _Observer:
         self.edges = [edge_image(image) for image in images]
         masks = None if self.subtractors is None else [subtract(image) for subtract, image
                                                        in zip(self.subtractors, images)]
-        frame = self.tracker.step(self.edges, masks, None if self.locate is None else self.locate(images[0]), depths)
+        seen, whole = (None, False) if self.locate is None else self.locate.sighting(images[0])
+        frame = self.tracker.step(self.edges, masks, seen, depths, object_whole=whole)
         self.spent += time.perf_counter() - started
         return frame
 
@@ -425,7 +428,7 @@ def tracking_video_frames(result: TrackResult, body: BodyModel, every: int = 4) 
         frame = result.frames[t]
         picture = body.draw(result.images[t], result.truth_markers[t], DEMONSTRATOR_CAMERA, (0, 160, 0))
         picture = body.draw(picture, frame.markers, DEMONSTRATOR_CAMERA, (230, 0, 0), thickness=2)
-        u, v = DEMONSTRATOR_CAMERA.project(frame.end_mean)[0]
+        u, v = DEMONSTRATOR_CAMERA.pixels(frame.end_mean)[0]
         if np.isfinite(u) and np.isfinite(v):
             cv2.circle(picture, (int(round(u)), int(round(v))), 4, (230, 0, 0), -1, lineType=cv2.LINE_AA)
         cv2.putText(picture, f"class {frame.class_id}, state {frame.state}, entropy {frame.entropy:.2f} nats",

@@ -252,7 +252,7 @@ def reach_picture(track: ReachTrack, camera: Camera, t: int) -> np.ndarray:
     picture = body.draw(track.images[t], track.truth_markers[t], camera, (0, 160, 0))
     picture = body.draw(picture, frame.markers, camera, (230, 0, 0), thickness=2)
     points = np.array([[*frame.end_mean[:2], BLOCK_CENTRE_Z], [*track.reach.target, BLOCK_CENTRE_Z]])
-    (u, v), (tu, tv) = camera.project(points)
+    (u, v), (tu, tv) = camera.pixels(points)
     if np.all(np.isfinite([tu, tv])):
         cv2.circle(picture, (int(round(tu)), int(round(tv))), 6, (0, 160, 0), 1, lineType=cv2.LINE_AA)
     if np.all(np.isfinite([u, v])):

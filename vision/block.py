@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from hoap_actions.envs.camera import Camera
+from hoap_actions.envs.camera import PIXEL_SAMPLE_UV, Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.vision.perception import PIXEL_SAMPLE_UV, backproject, rays_to_plane
+from hoap_actions.vision.perception import backproject, rays_to_plane
 
 __all__ = ["BLOCK_HSV_RANGE", "BlockDetection", "locate_block"]
 

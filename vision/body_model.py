@@ -15,6 +15,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from hoap_actions.envs.camera import PIXEL_SAMPLE_UV
 from hoap_actions.errors import InvalidInputError
 
 __all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "ProjectedBodies", "Projector"]
@@ -22,12 +23,13 @@ __all__ = ["ARM_CAPSULES", "BodyModel", "Capsule", "ProjectedBodies", "Projector
 
 class Projector(Protocol):
     """A pinhole camera (:class:`hoap_actions.envs.camera.Camera` is one): its image size, world points
-    (N, 3) to pixels (N, 2) (u right, v down), and its 4x4 world-to-camera matrix."""
+    (N, 3) to the pixels (N, 2) (column right, row down) where its images show them, and its 4x4
+    world-to-camera matrix."""
 
     width: int
     height: int
 
-    def project(self, points: np.ndarray) -> np.ndarray: ...
+    def pixels(self, points: np.ndarray) -> np.ndarray: ...
 
     def view_matrix(self) -> np.ndarray: ...
 
@@ -149,21 +151,22 @@ class BodyModel:
         """``camera``'s view matrix (its first row: the right axis in the world, a radius across the view;
         its third: the view axis) and its projection, the matrices
         made once per camera (a tracker projects every particle in every frame): the same arithmetic as
-        :meth:`Camera.project`. Projectors without ``projection_matrix`` project themselves."""
+        :meth:`Camera.pixels`. Projectors without ``projection_matrix`` project themselves."""
         try:
             return self._cameras[camera]
         except (KeyError, TypeError):  # TypeError: an unhashable projector, never cached
             pass
         view = camera.view_matrix()
         if not hasattr(camera, "projection_matrix"):
-            return view, camera.project
+            return view, camera.pixels
         matrix = (camera.projection_matrix() @ view).T
         width, height = camera.width, camera.height
+        sample_u, sample_v = PIXEL_SAMPLE_UV
 
         def project(points: np.ndarray) -> np.ndarray:
             homogeneous = np.c_[points, np.ones(len(points))] @ matrix
             ndc = homogeneous[:, :2] / homogeneous[:, 3:4]
-            return np.c_[(ndc[:, 0] + 1.0) * 0.5 * width, (1.0 - ndc[:, 1]) * 0.5 * height]
+            return np.c_[(ndc[:, 0] + 1.0) * 0.5 * width - sample_u, (1.0 - ndc[:, 1]) * 0.5 * height - sample_v]
 
         try:
             self._cameras[camera] = (view, project)

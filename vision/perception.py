@@ -37,7 +37,7 @@ import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
 from hoap_actions.envs import scene, world
-from hoap_actions.envs.camera import Camera
+from hoap_actions.envs.camera import PIXEL_SAMPLE_UV, Camera
 from hoap_actions.errors import InvalidInputError
 
 PEG_COLOURS_RGB: dict[str, np.ndarray] = {name: np.array(rgba[:3]) for name, rgba in scene.PEG_COLOURS.items()}
@@ -56,10 +56,6 @@ BOARD_FIT_SCALE = 0.001  # m, residual beyond which the board fit counts a point
 # (seeds 0-49, 12000-12049, arm in view or not); a board fitted across leaves hundreds of points that far off.
 BOARD_EXPLAINED_COST = 0.01 * (math.sqrt(2.0) - 1.0) * BOARD_FIT_SCALE**2
 MIN_SEEN_OPENING_FRACTION = 0.5  # a hole whose opening is less seen than this is flagged as inferred
-# Where in the continuous image of Camera.project TinyRenderer samples pixel (row r, column c):
-# at (c + 0, r + 1), not at the pixel's centre (c + 0.5, r + 0.5); measured on seeds 0-49, where
-# centre sampling put every peg and hole 0.6 mm (half a pixel) off along both image axes.
-PIXEL_SAMPLE_UV = (0.0, 1.0)
 # TinyRenderer draws a peg's top face this far above its true top (measured: 50.98 mm for pegs whose
 # top is at 49.99 mm on seeds 0-49; the board's top is drawn where it is).
 PEG_TOP_RENDER_OFFSET = 0.001  # m
