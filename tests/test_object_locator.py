@@ -38,7 +38,7 @@ def test_the_renderer_shows_a_point_at_the_cameras_pixel(scene, xy):
     v, u = np.nonzero((labels == biggest) & (hsv[..., 2] >= 170))
     centre = np.array([[*xy, size]])
     np.testing.assert_allclose([u.mean(), v.mean()], DEMONSTRATOR_CAMERA.pixels(centre)[0], atol=0.2)
-    np.testing.assert_allclose(DEMONSTRATOR_CAMERA.project(centre) - DEMONSTRATOR_CAMERA.pixels(centre), [[0.0, 1.0]])
+    assert DEMONSTRATOR_CAMERA.project(centre)[0, 1] - v.mean() > 0.7  # project() alone misses it by a row
 
 
 def test_a_block_the_hand_half_hides_is_seen_but_not_whole(scene):

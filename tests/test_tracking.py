@@ -166,13 +166,15 @@ def test_silhouette_term_prefers_the_true_pose_and_is_small_on_it(models, reach)
 
 def test_tracks_a_reach_better_than_standing_still(models, reach):
     """On edge images of a synthesised reach, for each of three seeds the filter's pose estimate and its class
-    beat the trivial answers (the arm held at its first pose; a class on fewer than 70 % of frames). Where the
-    hand goes is not asked of edges alone (over 12 seeds its end lands 1.5-14 cm off, about as far as the
-    training ends' mean): the seen block's test below asks it."""
-    approach, _, movement = reach
+    beat the trivial answers (the arm held at its first pose; a class on fewer than 70 % of frames), and its
+    estimate of where the hand goes ends within 10 cm of the truth in the median run. Edges alone do not pin the
+    goal (over 12 seeds its end lands 1.5-14 cm off; the medians of four triples 4.1-8.8 cm): the seen block's
+    test below asks for more."""
+    approach, phi, movement = reach
     body = BodyModel(models.marker_names_, TORSO_BASE)
     edges = list(images(body, movement))
     still = np.sqrt(np.mean(np.sum((movement[:1] - movement) ** 2, axis=2)))
+    end_errors = []
     for seed in range(3):
         tracker = ActionTracker(models, body, CAMERA, n_particles=200, random_state=seed)
         frames = [tracker.step(G) for G in edges]
@@ -180,6 +182,8 @@ def test_tracks_a_reach_better_than_standing_still(models, reach):
         assert np.sqrt(np.mean(np.sum((estimate - movement) ** 2, axis=2))) < 0.35 * still
         assert np.mean([f.class_probabilities.get(approach, 0.0) > 0.5 for f in frames]) > 0.7
         assert all(np.isfinite(f.entropy) and f.entropy >= 0.0 for f in frames)
+        end_errors.append(np.linalg.norm(frames[-1].end_mean[:2] - phi[3:5]))
+    assert np.median(end_errors) < 0.10
 
 
 def test_the_seen_block_draws_the_reach_goal_towards_it(models, reach):

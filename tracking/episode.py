@@ -172,9 +172,8 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
                                 pose_proposal=pose_proposal, random_state=seed, lag=lag or None,
                                 pose_sharpening=pose_sharpening)
-        half = renderer.object_half_size_m
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
-                            ObjectLocator(camera, half, cube_half_size_m=half) if object_cue else None)
+                            _block_locator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
             images = renderer.frame(ep, t)
             frames.append(observe(images, renderer.depths()))
@@ -225,8 +224,7 @@ def track_frames(tracker: ActionTracker, rendered: RenderedFrames, silhouette: b
     """Track already rendered frames: each frame's belief, the wall time of edge images, masks, block and
     filter (s), and (``keep_edges``) the first view's edge images."""
     observe = _Observer(tracker, rendered.backgrounds if silhouette else None,
-                        ObjectLocator(rendered.views[0], rendered.object_half_size_m,
-                                      cube_half_size_m=rendered.object_half_size_m) if object_cue else None)
+                        _block_locator(rendered.views[0], rendered.object_half_size_m) if object_cue else None)
     frames, edges = [], []
     for images in rendered.images:
         frames.append(observe(images))
@@ -287,6 +285,12 @@ class _Renderer:
     def depths(self) -> list[np.ndarray] | None:
         """The last frame's depth images as the sensor read them (None without a depth sensor)."""
         return self._depths
+
+
+def _block_locator(camera: Camera, half_size_m: float) -> ObjectLocator:
+    """The block's locator on the plane of its centre, told its size so that it tells a whole block from one under
+    the hand (:meth:`ObjectLocator.sighting`)."""
+    return ObjectLocator(camera, half_size_m, cube_half_size_m=half_size_m)
 
 
 class _Observer:

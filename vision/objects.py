@@ -47,6 +47,15 @@ class TopFace:
     yaw: float
 
 
+def _turned_corners(half_size: float) -> np.ndarray:
+    """The 8 corners ``(len(OUTLINE_YAWS), 8, 3)`` of a cube of ``half_size`` about its centre, at each turn."""
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * half_size
+    c, s = np.cos(OUTLINE_YAWS), np.sin(OUTLINE_YAWS)
+    turns = np.zeros((len(OUTLINE_YAWS), 3, 3))
+    turns[:, 0, 0], turns[:, 0, 1], turns[:, 1, 0], turns[:, 1, 1], turns[:, 2, 2] = c, s, -s, c, 1.0
+    return np.einsum("ck,tkj->tcj", corners, turns)
+
+
 class ObjectLocator:
     """The block's centre (m, scene frame) from one camera image, or None when it is not seen.
 
@@ -74,6 +83,7 @@ class ObjectLocator:
             raise InvalidInputError(f"cube_half_size_m must be > 0 (m) or None; got {cube_half_size_m!r}")
         self.camera, self.plane_z = camera, float(plane_z)
         self.cube_half_size_m = None if cube_half_size_m is None else float(cube_half_size_m)
+        self._turned_corners = None if cube_half_size_m is None else _turned_corners(self.cube_half_size_m)
         self.hsv_ranges = [(np.array(low, np.uint8), np.array(high, np.uint8)) for low, high in hsv_ranges]
         grid = np.linspace(-PLANE_GRID_M, PLANE_GRID_M, 5)
         plane = np.array([[x, y, self.plane_z] for x in grid for y in grid])
@@ -105,15 +115,10 @@ class ObjectLocator:
     def smallest_outline_px(self, centre: np.ndarray) -> float:
         """The fewest pixels (the convex outline's area) the cube can cover in the image with its centre at
         ``centre`` (3,), over its turns about the vertical (:data:`OUTLINE_YAWS`)."""
-        h = self.cube_half_size_m
-        corners = np.array([[x, y, z] for x in (-h, h) for y in (-h, h) for z in (-h, h)])
-        areas = []
-        for yaw in OUTLINE_YAWS:
-            c, s = np.cos(yaw), np.sin(yaw)
-            turned = corners @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-            pixels = np.asarray(self.camera.pixels(centre + turned), np.float32)
-            areas.append(cv2.contourArea(cv2.convexHull(pixels)))
-        return float(min(areas))
+        corners = self._turned_corners
+        pixels = np.asarray(self.camera.pixels((centre + corners).reshape(-1, 3)), np.float32)
+        pixels = pixels.reshape(len(corners), -1, 2)
+        return float(min(cv2.contourArea(cv2.convexHull(outline)) for outline in pixels))
 
     def top_face(self, image: np.ndarray) -> TopFace | None:
         """The block's top face (the brightest pixels of its blob, lit from above) taken onto the plane
