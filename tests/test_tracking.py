@@ -406,6 +406,32 @@ def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
         tracker.step(G, depth=np.zeros((CAMERA.height, CAMERA.width)))
 
 
+def test_depth_weighs_the_pose_estimate_and_leaves_the_filter_to_the_colour_images(models, reach):
+    """By default the depth images tilt the pose estimate only: the same seed with and without them gives the same
+    class posterior every frame, bit for bit (the filter reads the colour images alone), and estimates nearer the
+    true reach; ``depth_weighs="filter"`` puts the depth term into every particle's weight, and its filter's
+    classes differ. A role not offered is refused."""
+    _, _, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    edges = list(images(body, movement))
+    depths = [_depth_image(body, pose, CAMERA) for pose in movement]
+    runs = {}
+    for name, depth, role in (("colour", None, "pose"), ("pose", depths, "pose"), ("filter", depths, "filter")):
+        tracker = ActionTracker(models, body, CAMERA, n_particles=60, random_state=4, depth_weighs=role)
+        runs[name] = [tracker.step(G, depth=None if depth is None else depth[t]) for t, G in enumerate(edges)]
+    for colour, tilted_frame in zip(runs["colour"], runs["pose"]):
+        assert colour.class_probabilities == tilted_frame.class_probabilities
+    assert any(a.class_probabilities != b.class_probabilities for a, b in zip(runs["colour"], runs["filter"]))
+
+    def error(frames):
+        return np.sqrt(np.mean([np.sum((f.markers - pose) ** 2) for f, pose in zip(frames, movement)]))
+
+    assert error(runs["pose"]) < error(runs["colour"])
+    for bad in ("evidence", None, 1):
+        with pytest.raises(InvalidInputError, match="depth_weighs"):
+            ActionTracker(models, body, CAMERA, depth_weighs=bad)
+
+
 def test_surface_depths_are_the_limb_axes_distance_along_the_view_less_the_radius(models, reach):
     """Cross-check against the camera's geometry written out: the axis points between each limb's two
     markers, their distance from the eye along the unit view direction, less the capsule's radius."""

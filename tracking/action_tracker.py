@@ -102,11 +102,14 @@ APPROACH_END_JITTER_M = 0.005
 APPROACH_AT_BLOCK_DIFFUSION_M = 0.001
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
-DEPTH_SIGMA_M = 0.02  # sigma of the depth term (m of truncated depth misfit; validation recording)
+# sigma of the depth term (m of truncated depth misfit) by what it weighs (validation recordings): in the filter, broad
+# enough for the class posterior; on the pose estimate alone, sharper (0.005-0.02 tried)
+DEPTH_SIGMA_M = {"filter": 0.02, "pose": 0.01}
 MARKER_SIGMA_M = 0.2  # m, spread of an observed marker around a particle's (step_markers): broad, as a sharp likelihood
 # collapses the particle set onto a class's early finishers (validation, 0.02 / 0.1 / 0.2 m: RMS 11.8 / 9.0 / 4.2 cm)
 MARKERS_POSE_SHARPENING = 16.0  # the power of the markers' likelihood in the pose estimate from motion capture
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
+DEPTH_WEIGHS = ("pose", "filter")  # what depth images weigh: the pose estimate only, or every particle's weight
 EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
 
 
@@ -165,7 +168,14 @@ class ActionTracker:
     silhouette_sigma
         the silhouette term's sigma, used when :meth:`step` is given foreground masks.
     depth_sigma_m
-        the depth term's sigma (m), used when :meth:`step` is given depth images.
+        the depth term's sigma (m), used when :meth:`step` is given depth images; None (the default): the one
+        chosen for what the depth weighs (:data:`DEPTH_SIGMA_M`).
+    depth_weighs
+        what the depth images weigh (:data:`DEPTH_WEIGHS`): ``"pose"`` (the default), the pose estimate only, each
+        frame's and the smoothed one, as ``pose_sharpening`` does, the filter and its class posterior reading the
+        colour images alone; ``"filter"``, every particle's weight, like the colour terms. Sharp enough to place the
+        arm along the camera's ray, the depth term in the filter collapses the class posterior onto whichever class
+        fits the moment (``docs/experiments/tracking.md``).
     object_still_m, object_moving_m
         scales of the object's seen displacement for classes that leave it at
         rest and for manipulations (:mod:`~hoap_actions.tracking.object_evidence`); ``object_still_m=None``
@@ -208,13 +218,16 @@ class ActionTracker:
                  end_diffusion_m: float = END_DIFFUSION_M, silhouette_sigma: float = SILHOUETTE_SIGMA,
                  object_still_m: float | None = OBJECT_STILL_M, object_moving_m: float = OBJECT_MOVING_M,
                  pose_proposal: str = "offsets", random_state: int | np.random.Generator | None = None,
-                 depth_sigma_m: float = DEPTH_SIGMA_M, lag: int | None = None,
+                 depth_sigma_m: float | None = None, lag: int | None = None,
                  object_place_m: float | None = None, far_leap_share: float = 0.0,
-                 pose_sharpening: float = 1.0) -> None:
+                 pose_sharpening: float = 1.0, depth_weighs: str = "pose") -> None:
         models = models if isinstance(models, TrackingModels) else TrackingModels.from_action_models(models)
         if (isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer))
                 or not 1 <= n_particles <= MAX_PARTICLES):
             raise InvalidInputError(f"n_particles must be an int in 1..{MAX_PARTICLES}; got {n_particles!r}")
+        if depth_weighs not in DEPTH_WEIGHS:
+            raise InvalidInputError(f"depth_weighs must be one of {list(DEPTH_WEIGHS)}; got {depth_weighs!r}")
+        depth_sigma_m = DEPTH_SIGMA_M[depth_weighs] if depth_sigma_m is None else depth_sigma_m
         if not (observation_sigma > 0 and silhouette_sigma > 0 and depth_sigma_m > 0 and end_diffusion_m >= 0):
             raise InvalidInputError("observation_sigma, silhouette_sigma and depth_sigma_m must be > 0 and "
                                     "end_diffusion_m >= 0")
@@ -249,6 +262,7 @@ class ActionTracker:
         self.depth_sigma_m = float(depth_sigma_m)
         self.lag = None if lag is None else int(lag)
         self.pose_sharpening = float(pose_sharpening)
+        self.depth_weighs = depth_weighs
         self.far_leap_share = float(far_leap_share)
         self._evidence = ObjectEvidence(models, object_still_m and float(object_still_m), float(object_moving_m),
                                         object_place_m and float(object_place_m))
@@ -359,7 +373,10 @@ class ActionTracker:
         self._see_object(object_position, bool(object_whole))
         self._propagate()
         markers = self.markers()
-        return self._weigh(markers, self._log_likelihood(markers, images, masks, depths))
+        colour, depth = self._image_evidence(markers, images, masks, depths)
+        if depth is not None and self.depth_weighs == "pose":
+            return self._weigh(markers, colour, depth)
+        return self._weigh(markers, colour if depth is None else colour + depth)
 
     def step_markers(self, observed: np.ndarray, sigma_m: float = MARKER_SIGMA_M,
                      object_position: np.ndarray | None = None) -> TrackedFrame:
@@ -392,12 +409,16 @@ class ActionTracker:
                 self._object = object_position
         self._evidence.see(object_position)
 
-    def _weigh(self, markers: np.ndarray, likelihood: np.ndarray) -> TrackedFrame:
+    def _weigh(self, markers: np.ndarray, likelihood: np.ndarray, pose_evidence: np.ndarray | None = None
+               ) -> TrackedFrame:
         """Weights times the frame's likelihood (log) and the object's motion term, the frame's summary,
-        resampling when due; a frame that no particle explains starts the filter again from its prior."""
+        resampling when due; a frame that no particle explains starts the filter again from its prior.
+        ``pose_evidence`` (log, per particle) weighs the pose estimate only, beside the sharpening's tilt."""
         if self._object is not None:  # where the object was when a particle's class began: here, if not seen before
             self.object_at[~np.isfinite(self.object_at[:, 0])] = self._object
         tilt = (self.pose_sharpening - 1.0) * likelihood if self.pose_sharpening != 1.0 else None
+        if pose_evidence is not None:
+            tilt = pose_evidence if tilt is None else tilt + pose_evidence
         likelihood = (likelihood + self._evidence.motion_log_likelihood(self.class_id, self.resting)
                       + self._evidence.place_log_likelihood(self.class_id, self.state, self.resting, self.object_at))
         reinitialised = not np.any(np.isfinite(likelihood))
@@ -544,17 +565,25 @@ class ActionTracker:
         not hidden by the table; off-image points count as 1. With foreground masks F, each view adds
         ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)``; with depth images, ``-misfit / (2 sigma_d^2)``
         (:mod:`~hoap_actions.tracking.image_evidence`)."""
-        total = np.zeros(self.n_particles)
+        colour, depth = self._image_evidence(markers, images, masks, depths)
+        return colour if depth is None else colour + depth
+
+    def _image_evidence(self, markers: np.ndarray, images: list[np.ndarray], masks: list[np.ndarray] | None = None,
+                        depths: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`_log_likelihood` in two parts, each body projected once: the colour terms (edges and
+        silhouette) and the depth terms (None without depth images)."""
+        colour = np.zeros(self.n_particles)
+        depth = None if depths is None else np.zeros(self.n_particles)
         mean_pose = None if masks is None else np.sum(self.weights[:, None, None] * markers, axis=0)
         for k, (image, camera) in enumerate(zip(images, self.cameras)):
             bodies = self.body.project(markers, camera)
-            total -= contour_misfit(self.body, bodies, image, camera) / (2.0 * self.observation_sigma**2)
+            colour -= contour_misfit(self.body, bodies, image, camera) / (2.0 * self.observation_sigma**2)
             if masks is not None:
-                total -= silhouette_misfit(self.body, bodies, mean_pose, masks[k], camera) \
+                colour -= silhouette_misfit(self.body, bodies, mean_pose, masks[k], camera) \
                     / (2.0 * self.silhouette_sigma**2)
             if depths is not None:
-                total -= depth_misfit(self.body, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
-        return total
+                depth -= depth_misfit(self.body, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
+        return colour, depth
 
     def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool,
                  tilt: np.ndarray | None = None) -> TrackedFrame:

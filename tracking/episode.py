@@ -151,7 +151,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                   silhouette: bool = True, object_cue: bool = True,
                   progress: Callable[[int, int], None] | None = None, pose_proposal: str = "offsets",
                   posture: PostureModel | None = None, depth_sensor: DepthSensor | None = None,
-                  lag: int = 0, pose_sharpening: float = 1.0) -> TrackResult:
+                  lag: int = 0, pose_sharpening: float = 1.0, depth_weighs: str = "pose") -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
@@ -162,8 +162,8 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     ``pose_proposal`` and ``posture``: how particles pose the arm (:class:`ActionTracker`). ``depth_sensor``
     adds each view's depth image as that sensor reads it (an RGB-D camera; its errors drawn from ``seed``,
     apart from the image noise's) to the evidence. ``lag``: frames of fixed-lag smoothing, scored beside the
-    filter's own estimates (:mod:`~hoap_actions.tracking.smoothing`). ``pose_sharpening``: as
-    :class:`ActionTracker`'s (1: off)."""
+    filter's own estimates (:mod:`~hoap_actions.tracking.smoothing`). ``pose_sharpening`` and ``depth_weighs``
+    (what the depth images weigh: the pose estimate or the filter): as :class:`ActionTracker`'s."""
     ep = _bridged_episode(models, demos, episode)
     views = (camera, *more_cameras)
     frames, kept, pictures = [], [], []
@@ -171,7 +171,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
                                 pose_proposal=pose_proposal, random_state=seed, lag=lag or None,
-                                pose_sharpening=pose_sharpening)
+                                pose_sharpening=pose_sharpening, depth_weighs=depth_weighs)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             _block_locator(camera, renderer.object_half_size_m) if object_cue else None)
         for t in range(ep.T):
