@@ -409,15 +409,15 @@ def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
 def test_depth_weighs_the_pose_estimate_and_leaves_the_filter_to_the_colour_images(models, reach):
     """By default the depth images tilt the pose estimate only: the same seed with and without them gives the same
     class posterior every frame, bit for bit (the filter reads the colour images alone), and estimates nearer the
-    true reach; ``depth_weighs="filter"`` puts the depth term into every particle's weight, and its filter's
+    true reach (the body in front of a wall: a limb posed off the body meets the wall's depth); ``depth_weighs="filter"`` puts the depth term into every particle's weight, and its filter's
     classes differ. A role not offered is refused."""
     _, _, movement = reach
     body = BodyModel(models.marker_names_, TORSO_BASE)
     edges = list(images(body, movement))
-    depths = [_depth_image(body, pose, CAMERA) for pose in movement]
+    depths = [np.nan_to_num(_depth_image(body, pose, CAMERA), nan=2.0) for pose in movement]  # a wall 2 m behind
     runs = {}
     for name, depth, role in (("colour", None, "pose"), ("pose", depths, "pose"), ("filter", depths, "filter")):
-        tracker = ActionTracker(models, body, CAMERA, n_particles=60, random_state=4, depth_weighs=role)
+        tracker = ActionTracker(models, body, CAMERA, n_particles=200, random_state=4, depth_weighs=role)
         runs[name] = [tracker.step(G, depth=None if depth is None else depth[t]) for t, G in enumerate(edges)]
     for colour, tilted_frame in zip(runs["colour"], runs["pose"]):
         assert colour.class_probabilities == tilted_frame.class_probabilities
