@@ -409,8 +409,9 @@ def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
 def test_depth_weighs_the_pose_estimate_and_leaves_the_filter_to_the_colour_images(models, reach):
     """By default the depth images tilt the pose estimate only: the same seed with and without them gives the same
     class posterior every frame, bit for bit (the filter reads the colour images alone), and estimates nearer the
-    true reach (the body in front of a wall: a limb posed off the body meets the wall's depth); ``depth_weighs="filter"`` puts the depth term into every particle's weight, and its filter's
-    classes differ. A role not offered is refused."""
+    true reach (the body in front of a wall: a limb posed off the body meets the wall's depth);
+    ``depth_weighs="filter"`` puts the depth term into every particle's weight, and its filter's classes differ. A
+    role not offered is refused."""
     _, _, movement = reach
     body = BodyModel(models.marker_names_, TORSO_BASE)
     edges = list(images(body, movement))
