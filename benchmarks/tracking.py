@@ -229,7 +229,8 @@ def main(argv: list[str] | None = None) -> dict:
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
-                     "from_markers": args.from_markers, "depth": args.depth, "lag": args.lag,
+                     "from_markers": args.from_markers, "depth": args.depth,
+                     "depth_weighs": "pose" if args.depth else None, "lag": args.lag,
                      "object_place": args.from_markers and not args.no_object_place,
                      "far_leaps": args.from_markers and not args.no_far_leaps,
                      "hand_turn": args.from_markers and not args.no_hand_turn,
