@@ -472,8 +472,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="track from the recording's markers and block instead of the camera's images "
                             "(recognition from motion capture)")
     track.add_argument("--depth", action="store_true",
-                       help="an RGB-D camera: score each view's depth image too, as a structured-light sensor reads "
-                            "it (noise and steps growing with distance, holes at edges); default: colour images only")
+                       help="an RGB-D camera: each view's depth image, as a structured-light sensor reads it (noise "
+                            "and steps growing with distance, holes at edges), weighs the pose estimate; default: "
+                            "colour images only")
     track.add_argument("--pose-proposal", choices=["offsets", "turned", "hand"],
                        help="how particles pose the arm: offsets of every marker from the PHMM's mean, those offsets "
                             "with the hand turned about the wrist by two persistent angles, or the hand shifted and "
