@@ -63,7 +63,7 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.tracking.image_evidence import contour_misfit, depth_misfit, silhouette_misfit
+from hoap_actions.tracking.image_evidence import depths_or_holes, image_log_likelihoods, within_unit_range
 from hoap_actions.tracking.object_evidence import OBJECT_MOVING_M, OBJECT_STILL_M, ObjectEvidence
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
@@ -111,16 +111,6 @@ MARKERS_POSE_SHARPENING = 16.0  # the power of the markers' likelihood in the po
 RESAMPLE_BELOW = 0.5  # resample when the effective sample size is below this share of the particles
 DEPTH_WEIGHS = ("pose", "filter")  # what depth images weigh: the pose estimate only, or every particle's weight
 EXIT = -1  # grammar successor meaning "the demonstration is over": the particle stays at rest
-
-
-def _within_unit_range(image: np.ndarray) -> str | None:
-    low, high = np.min(image), np.max(image)  # a NaN makes both NaN: the comparisons then fail
-    return None if low >= 0.0 and high <= 1.0 else "finite values in [0, 1]"
-
-
-def _depths_or_holes(image: np.ndarray) -> str | None:
-    wrong = np.any(image <= 0.0) or np.any(np.isinf(image))
-    return "depths > 0 (m) or NaN where none was measured" if wrong else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -367,9 +357,9 @@ class ActionTracker:
         ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen);
         ``object_whole`` False: it is partly hidden (a hand over it), its sighting evidence of motion only, goals
         still drawn where it was last seen whole."""
-        images = self._per_camera(edges, "edge image", _within_unit_range)
-        masks = None if foreground is None else self._per_camera(foreground, "foreground mask", _within_unit_range)
-        depths = None if depth is None else self._per_camera(depth, "depth image", _depths_or_holes)
+        images = self._per_camera(edges, "edge image", within_unit_range)
+        masks = None if foreground is None else self._per_camera(foreground, "foreground mask", within_unit_range)
+        depths = None if depth is None else self._per_camera(depth, "depth image", depths_or_holes)
         self._see_object(object_position, bool(object_whole))
         self._propagate()
         markers = self.markers()
@@ -570,20 +560,10 @@ class ActionTracker:
 
     def _image_evidence(self, markers: np.ndarray, images: list[np.ndarray], masks: list[np.ndarray] | None = None,
                         depths: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-        """:meth:`_log_likelihood` in two parts, each body projected once: the colour terms (edges and
-        silhouette) and the depth terms (None without depth images)."""
-        colour = np.zeros(self.n_particles)
-        depth = None if depths is None else np.zeros(self.n_particles)
+        """:meth:`_log_likelihood` in two parts: the colour terms and the depth terms (None without depth images)."""
         mean_pose = None if masks is None else np.sum(self.weights[:, None, None] * markers, axis=0)
-        for k, (image, camera) in enumerate(zip(images, self.cameras)):
-            bodies = self.body.project(markers, camera)
-            colour -= contour_misfit(self.body, bodies, image, camera) / (2.0 * self.observation_sigma**2)
-            if masks is not None:
-                colour -= silhouette_misfit(self.body, bodies, mean_pose, masks[k], camera) \
-                    / (2.0 * self.silhouette_sigma**2)
-            if depths is not None:
-                depth -= depth_misfit(self.body, bodies, depths[k], camera) / (2.0 * self.depth_sigma_m**2)
-        return colour, depth
+        return image_log_likelihoods(self.body, self.cameras, markers, images, masks, depths, mean_pose,
+                                     (self.observation_sigma, self.silhouette_sigma, self.depth_sigma_m))
 
     def _summary(self, weights: np.ndarray, markers: np.ndarray, best_ll: float, reinitialised: bool,
                  tilt: np.ndarray | None = None) -> TrackedFrame:

@@ -17,7 +17,8 @@ import numpy as np
 
 from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
 
-__all__ = ["DEPTH_TRUNCATION_M", "contour_misfit", "depth_misfit", "sample", "silhouette_misfit"]
+__all__ = ["DEPTH_TRUNCATION_M", "contour_misfit", "depth_misfit", "depths_or_holes", "image_log_likelihoods", "sample",
+           "silhouette_misfit", "within_unit_range"]
 
 DEPTH_TRUNCATION_M = 0.05  # a depth residual counts at most this much: an occluded or mismeasured point is not a pose
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
@@ -72,3 +73,35 @@ def depth_misfit(body: BodyModel, bodies: ProjectedBodies, depth: np.ndarray, ca
     residual = np.minimum(np.square(measured - body.surface_depths(bodies)), DEPTH_TRUNCATION_M**2)
     seen = np.isfinite(residual)
     return np.where(seen, residual, 0.0).sum(axis=1) / np.maximum(seen.sum(axis=1), 1)
+
+
+def image_log_likelihoods(body: BodyModel, cameras: list[Projector], markers: np.ndarray, images: list[np.ndarray],
+                          masks: list[np.ndarray] | None, depths: list[np.ndarray] | None, mean_pose: np.ndarray | None,
+                          sigmas: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray | None]:
+    """Per particle of poses ``markers`` (n, M, 3), the log-likelihood of the colour terms (edges, and silhouettes
+    with ``masks``; ``mean_pose`` the particles' weighted mean) and of the depth terms (None without ``depths``),
+    summed over the views, each misfit over twice its sigma squared (``sigmas``: edges, silhouette, depth); each
+    body projected once."""
+    edge_sigma, silhouette_sigma, depth_sigma = sigmas
+    colour = np.zeros(len(markers))
+    depth = None if depths is None else np.zeros(len(markers))
+    for k, (image, camera) in enumerate(zip(images, cameras)):
+        bodies = body.project(markers, camera)
+        colour -= contour_misfit(body, bodies, image, camera) / (2.0 * edge_sigma**2)
+        if masks is not None:
+            colour -= silhouette_misfit(body, bodies, mean_pose, masks[k], camera) / (2.0 * silhouette_sigma**2)
+        if depths is not None:
+            depth -= depth_misfit(body, bodies, depths[k], camera) / (2.0 * depth_sigma**2)
+    return colour, depth
+
+
+def within_unit_range(image: np.ndarray) -> str | None:
+    """What is wrong with an edge image or foreground mask, None if nothing (values in [0, 1])."""
+    low, high = np.min(image), np.max(image)  # a NaN makes both NaN: the comparisons then fail
+    return None if low >= 0.0 and high <= 1.0 else "finite values in [0, 1]"
+
+
+def depths_or_holes(image: np.ndarray) -> str | None:
+    """What is wrong with a depth image, None if nothing (depths > 0 m, NaN where none was measured)."""
+    wrong = np.any(image <= 0.0) or np.any(np.isinf(image))
+    return "depths > 0 (m) or NaN where none was measured" if wrong else None
