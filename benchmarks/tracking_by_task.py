@@ -35,9 +35,9 @@ def task_names(demos, episodes: list[int]) -> dict[int, str]:
     return {k: f"{demos[k].ground_truth.action} {demos[k].ground_truth.direction}" for k in episodes}
 
 
-def by_task(episodes: list[dict], tasks: dict[int, str]) -> dict:
+def by_task(episodes: list[dict], tasks: dict) -> dict:
     """Per task, the RMS over its episodes of each error and the mean class agreement (``episodes``: the results
-    file's per-episode summaries, ``tasks``: episode index -> task)."""
+    file's per-episode summaries, their ``"episode"`` a key of ``tasks``, which names each one's task)."""
     import numpy as np
 
     def rms(values: list[float]) -> float:
@@ -63,9 +63,15 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     from hoap_actions.demonstration.datasets import load_demonstrations
 
-    results = json.loads(args.results.read_text())
+    try:
+        results = json.loads(args.results.read_text())
+        recordings = results["per_recording"]
+    except (OSError, ValueError, KeyError, TypeError):
+        print(f"error: {args.results} is not a results file of benchmarks/tracking.py (JSON with per_recording)",
+              file=sys.stderr)
+        raise SystemExit(2) from None
     episodes, tasks = [], {}
-    for seed, recording in results["per_recording"].items():
+    for seed, recording in recordings.items():
         demos = load_demonstrations(ensure_recording("paper", int(seed), args.data))
         named = task_names(demos, [e["episode"] for e in recording["episodes"]])
         for e in recording["episodes"]:
@@ -77,7 +83,7 @@ def main(argv: list[str] | None = None) -> dict:
                     if "smoothed_rms_m_all" in figures else "")
         print(f"{task:>14} ({figures['episodes']} episodes): all markers {100 * figures['rms_m_all']:.2f} cm, "
               f"classes {figures['frame_accuracy']:.1%}{smoothed}")
-    document = {"protocol": {"results": str(args.results), "seeds": [int(s) for s in results["per_recording"]],
+    document = {"protocol": {"results": str(args.results), "seeds": [int(s) for s in recordings],
                              "source_protocol": results.get("protocol")},
                 "by_task": table}
     write_json(args.output, document)

@@ -64,7 +64,7 @@ def test_clutter_and_image_noise_are_part_of_the_seeded_episode(small):
         track_episode(models, small, 3, image_noise=-0.1)
 
 
-def test_a_depth_camera_is_part_of_the_seeded_episode_and_reaches_the_filter(small):
+def test_a_depth_camera_is_part_of_the_seeded_episode_and_reaches_the_estimate(small):
     from hoap_actions.vision.depth_sensor import DepthSensor
 
     models = load_default_models()
@@ -73,7 +73,7 @@ def test_a_depth_camera_is_part_of_the_seeded_episode_and_reaches_the_filter(sma
                           depth_sensor=DepthSensor()).summary() for _ in range(2)]
     assert runs[0]["rms_m_all"] == runs[1]["rms_m_all"] and runs[0]["recognized"] == runs[1]["recognized"]
     colour = track_episode(models, small, 3, particles=50, seed=2, camera=camera).summary()
-    assert colour["rms_m_all"] != runs[0]["rms_m_all"]  # the depth images reach the filter
+    assert colour["rms_m_all"] != runs[0]["rms_m_all"]  # the depth images reach the pose estimate
 
 
 def test_refuses_what_it_cannot_track(small):

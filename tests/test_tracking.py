@@ -124,6 +124,12 @@ def images(body, movement):
         yield edge_image(picture)
 
 
+def log_likelihood(tracker, poses, edges, masks=None, depths=None):
+    """The tracker's image log-likelihood of ``poses``: its colour and depth terms summed."""
+    colour, depth = tracker._image_evidence(poses, edges, masks, depths)
+    return colour if depth is None else colour + depth
+
+
 def test_likelihood_prefers_the_true_pose(models, reach):
     _, _, movement = reach
     body = BodyModel(models.marker_names_, TORSO_BASE)
@@ -133,7 +139,7 @@ def test_likelihood_prefers_the_true_pose(models, reach):
     moved = movement[t] + np.array([0.0, 0.05, 0.0])
     bent = movement[t].copy()
     bent[1:] += [0.0, 0.0, 0.05]
-    scores = tracker._log_likelihood(np.stack([movement[t], moved, bent]), [G])
+    scores = log_likelihood(tracker, np.stack([movement[t], moved, bent]), [G])
     assert scores[0] > scores[1] and scores[0] > scores[2]
 
 
@@ -159,8 +165,8 @@ def test_silhouette_term_prefers_the_true_pose_and_is_small_on_it(models, reach)
     misfit = silhouette_misfit(body, body.project(poses, CAMERA), poses.mean(axis=0), F, CAMERA)  # weights equal
     assert misfit[0] < 0.15 and misfit[1] > misfit[0] + 0.1 and misfit[2] > misfit[0] + 0.1
     G = next(iter(images(body, movement[t:t + 1])))
-    with_masks = tracker._log_likelihood(poses, [G], [F])
-    np.testing.assert_allclose(tracker._log_likelihood(poses, [G]) - with_masks,
+    with_masks = log_likelihood(tracker, poses, [G], [F])
+    np.testing.assert_allclose(log_likelihood(tracker, poses, [G]) - with_masks,
                                misfit / (2 * tracker.silhouette_sigma**2))
 
 
@@ -400,7 +406,7 @@ def test_depth_term_prefers_the_true_pose_and_tells_depth_apart(models, reach):
     misfit = depth_misfit(body, body.project(poses, CAMERA), D, CAMERA)
     assert misfit[0] < 1e-4 and misfit[1] > 1e-3 and misfit[2] > misfit[0]
     G = next(iter(images(body, movement[t:t + 1])))
-    np.testing.assert_allclose(tracker._log_likelihood(poses, [G]) - tracker._log_likelihood(poses, [G], None, [D]),
+    np.testing.assert_allclose(log_likelihood(tracker, poses, [G]) - log_likelihood(tracker, poses, [G], None, [D]),
                                misfit / (2 * tracker.depth_sigma_m**2))
     with pytest.raises(InvalidInputError, match="depths > 0"):
         tracker.step(G, depth=np.zeros((CAMERA.height, CAMERA.width)))

@@ -363,10 +363,12 @@ class ActionTracker:
         self._see_object(object_position, bool(object_whole))
         self._propagate()
         markers = self.markers()
-        colour, depth = self._image_evidence(markers, images, masks, depths)
-        if depth is not None and self.depth_weighs == "pose":
-            return self._weigh(markers, colour, depth)
-        return self._weigh(markers, colour if depth is None else colour + depth)
+        colour, depth_evidence = self._image_evidence(markers, images, masks, depths)
+        if depth_evidence is None:
+            return self._weigh(markers, colour)
+        if self.depth_weighs == "pose":
+            return self._weigh(markers, colour, depth_evidence)
+        return self._weigh(markers, colour + depth_evidence)
 
     def step_markers(self, observed: np.ndarray, sigma_m: float = MARKER_SIGMA_M,
                      object_position: np.ndarray | None = None) -> TrackedFrame:
@@ -549,18 +551,12 @@ class ActionTracker:
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
-    def _log_likelihood(self, markers: np.ndarray, images: list[np.ndarray],
-                        masks: list[np.ndarray] | None = None, depths: list[np.ndarray] | None = None) -> np.ndarray:
-        """Eq. (8) / (9) in log form: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)`` over the contour points
-        not hidden by the table; off-image points count as 1. With foreground masks F, each view adds
-        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)``; with depth images, ``-misfit / (2 sigma_d^2)``
-        (:mod:`~hoap_actions.tracking.image_evidence`)."""
-        colour, depth = self._image_evidence(markers, images, masks, depths)
-        return colour if depth is None else colour + depth
-
     def _image_evidence(self, markers: np.ndarray, images: list[np.ndarray], masks: list[np.ndarray] | None = None,
                         depths: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-        """:meth:`_log_likelihood` in two parts: the colour terms and the depth terms (None without depth images)."""
+        """Eq. (8) / (9) in log form, per particle: ``-sum_views mean_C (1 - G(c))^2 / (2 sigma^2)`` over the contour
+        points not hidden by the table (off-image points count as 1), with foreground masks F each view adding
+        ``-(mean_limbs (1 - F) + uncovered) / (2 sigma_s^2)``; and apart, with depth images, ``-sum_views misfit /
+        (2 sigma_d^2)`` (None without them) (:mod:`~hoap_actions.tracking.image_evidence`)."""
         mean_pose = None if masks is None else np.sum(self.weights[:, None, None] * markers, axis=0)
         return image_log_likelihoods(self.body, self.cameras, markers, images, masks, depths, mean_pose,
                                      (self.observation_sigma, self.silhouette_sigma, self.depth_sigma_m))
