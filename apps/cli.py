@@ -253,7 +253,9 @@ def _track(args: argparse.Namespace) -> int:
           f"{demos.fps:.0f} Hz) tracked at {summary['hz']:.0f} frames/s with {args.particles} particles: "
           f"RMS shoulder {100 * rms['shoulder']:.1f}, elbow {100 * rms['elbow']:.1f}, finger "
           f"{100 * rms['index_tip']:.1f} cm (pooled {100 * summary['rms_m_pooled']:.1f}); approach end "
-          f"{'-' if phi is None else f'{100 * phi:.1f} cm'} off; "
+          f"{'-' if phi is None else f'{100 * phi:.1f} cm'} off"
+          + ("" if summary.get("read_from_task_error_m") is None else
+             f" ({100 * summary['read_from_task_error_m']:.1f} cm read from the task that followed)") + "; "
           + ("no frame has a known class" if summary["frame_accuracy"] is None else
              f"class agrees with discovery's on {summary['frame_accuracy']:.0%} of frames, its kind on "
              f"{summary['kind_accuracy']:.0%}"))

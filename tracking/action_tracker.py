@@ -308,6 +308,11 @@ class ActionTracker:
         self._frames_seen = 0
         self._draw_prior()
 
+    @property
+    def object_seen(self) -> np.ndarray | None:
+        """Where the object was last seen whole (3,) (m), None before any sighting."""
+        return None if self._object is None else self._object.copy()
+
     def smoothed_frames(self, final: bool = False) -> list[SmoothedFrame]:
         """The fixed-lag estimates (:mod:`~hoap_actions.tracking.smoothing`) ready since the last call: frame
         ``t``'s once frame ``t + lag`` was weighed; ``final`` (the track is over) reads the frames still

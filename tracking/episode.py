@@ -20,10 +20,11 @@ from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA, DemoScene
 from hoap_actions.envs.camera import Camera
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.discovery.estimator import APPROACH, UNKNOWN, effect_track
+from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION, UNKNOWN, effect_track
 from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.primitives.models.approach_ends import approach_ends_by_following_class
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 from hoap_actions.tracking.action_tracker import (
     FAR_LEAP_SHARE,
@@ -32,6 +33,7 @@ from hoap_actions.tracking.action_tracker import (
     ActionTracker,
     TrackedFrame,
 )
+from hoap_actions.tracking.approach_goal import read_approach_end
 from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.smoothing import SmoothedFrame
@@ -72,12 +74,16 @@ class TrackResult:
     kinds: dict[int, str] = field(default_factory=dict)  # class id -> approach / manipulation / remove
     lag: int = 0                        # frames of fixed-lag smoothing behind ``smoothed``
     smoothed: list[SmoothedFrame] = field(default_factory=list)  # one per frame when lag > 0
+    objects_seen: list[np.ndarray | None] = field(default_factory=list)  # per frame, the block last seen whole
+    approach_places: dict[int, np.ndarray] = field(default_factory=dict)  # training approach ends by what followed
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers, of the three pooled (the paper's figure) and of all, frame
         rate, approach-end error and frames to find it, per-frame agreement of the recognised class with
         discovery's (and of its kind: approach, manipulation or remove), and both class sequences; with a
-        lag, the same scores of the smoothed estimates under ``"smoothed"``."""
+        lag, the same scores of the smoothed estimates under ``"smoothed"``; with the block's sightings and the
+        models' approach places, each approach's end read from the manipulation recognised after it
+        (:mod:`~hoap_actions.tracking.approach_goal`), scored as the filter's."""
         scores = self._scores(self.frames)
         errors, found = [], []
         for start, end, target in self.approach_ends:
@@ -98,10 +104,27 @@ class TrackResult:
             "frames_to_converge": float(np.median(found)) if found else None,
             "approaches_converged": len(found),
             "approaches": len(self.approach_ends),
+            **self._task_read_scores(),
             **{key: scores[key] for key in ("frame_accuracy", "kind_accuracy", "recognized")},
             "truth": self.truth_classes.tolist(),
             **smoothed,
         }
+
+    def _task_read_scores(self) -> dict:
+        """Each approach's end read from the manipulation recognised after it (smoothed classes with a lag): the
+        approaches within :data:`CONVERGED_M` of the true end at the approach's last frame and the median error
+        (m); nothing without the block's sightings or the models' approach places."""
+        if not (self.objects_seen and self.approach_places):
+            return {}
+        classes = [f.class_id for f in (self.smoothed if self.lag else self.frames)]
+        errors = []
+        for _, end, target in self.approach_ends:
+            following = next((c for c in classes[end - 1:] if self.kinds.get(c) == MANIPULATION), None)
+            goal = read_approach_end(self._approach_end(self.frames[end - 1]), following, self.objects_seen[end - 1],
+                                     self.approach_places)
+            errors.append(float(np.linalg.norm(goal - target)))
+        return {"approaches_read_from_task": int(np.sum(np.array(errors) < CONVERGED_M)),
+                "read_from_task_error_m": float(np.median(errors)) if errors else None}
 
     def _approach_end(self, frame: TrackedFrame) -> np.ndarray:
         """The approach's goal as a frame estimates it: its approach classes' ends, weighted by their
@@ -166,7 +189,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     (what the depth images weigh: the pose estimate or the filter): as :class:`ActionTracker`'s."""
     ep = _bridged_episode(models, demos, episode)
     views = (camera, *more_cameras)
-    frames, kept, pictures = [], [], []
+    frames, kept, pictures, seen = [], [], [], []
     with _Renderer(demos, episode, views, clutter, image_noise, seed, depth_sensor) as renderer:
         body = BodyModel(models.marker_names_, torso_base=renderer.torso_base, hidden_below_z=TABLE_TOP_Z)
         tracker = ActionTracker(TrackingModels.from_action_models(models, posture), body, views, n_particles=particles,
@@ -177,6 +200,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
         for t in range(ep.T):
             images = renderer.frame(ep, t)
             frames.append(observe(images, renderer.depths()))
+            seen.append(tracker.object_seen)
             if keep_images:
                 kept.append(observe.edges[0])
                 pictures.append(images[0])
@@ -185,7 +209,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, observe.spent,
                        body.torso_base, silhouette, kept, pictures, len(views), _kinds(models), lag,
-                       tracker.smoothed_frames(final=True) if lag else [])
+                       tracker.smoothed_frames(final=True) if lag else [], seen, _approach_places(models))
 
 
 @dataclass
@@ -342,12 +366,16 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
                             far_leap_share=far_leap_share, pose_sharpening=pose_sharpening)
     started = time.perf_counter()
     observed = demos[episode].H  # as recorded: a marker missing in a frame is left out of its likelihood
-    frames = [tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None) for t in range(ep.T)]
+    frames, seen = [], []
+    for t in range(ep.T):
+        frames.append(tracker.step_markers(observed[t], sigma_m, ep.O[t, :3] if object_cue else None))
+        seen.append(tracker.object_seen)
     spent = time.perf_counter() - started
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
                        body.torso_base, silhouette=False, views=0, kinds=_kinds(models), lag=lag,
-                       smoothed=tracker.smoothed_frames(final=True) if lag else [])
+                       smoothed=tracker.smoothed_frames(final=True) if lag else [], objects_seen=seen,
+                       approach_places=_approach_places(models))
 
 
 def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_effect: bool = False,
@@ -402,6 +430,14 @@ def _bridged_episode(models: ActionModels, demos: Demonstrations, episode: int):
         raise InvalidInputError(f"the recording's markers {list(demos.marker_names)} are not the models' "
                                 f"{list(models.marker_names_)}")
     return clean_demonstrations(dataclasses.replace(demos, episodes=(demos[episode],)))[0]
+
+
+def _approach_places(models: ActionModels) -> dict[int, np.ndarray]:
+    """The training approaches' ends by the manipulations that followed them (none for models without approach
+    ends)."""
+    if models.approach_ends_ is None:
+        return {}
+    return approach_ends_by_following_class(models.discovery_, models.approach_ends_)
 
 
 def _kinds(models: ActionModels) -> dict[int, str]:

@@ -15,9 +15,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.primitives.discovery.estimator import APPROACH
+from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 
-__all__ = ["fit_approach_ends"]
+__all__ = ["approach_ends_by_following_class", "fit_approach_ends"]
 
 
 def fit_approach_ends(discovery, hands: Sequence[np.ndarray], objects: Sequence[np.ndarray]) -> np.ndarray | None:
@@ -42,3 +42,30 @@ def fit_approach_ends(discovery, hands: Sequence[np.ndarray], objects: Sequence[
     if not np.all(np.isfinite(ends)):
         raise InvalidInputError("the hand and object at the approaches' ends must be finite; bridge marker gaps first")
     return ends
+
+
+
+def approach_ends_by_following_class(discovery, ends: np.ndarray) -> dict[int, np.ndarray]:
+    """The training approach ends ``ends`` (``(n, 3)``, as :func:`fit_approach_ends` gives them for ``discovery``)
+    grouped by the manipulation classes its demonstration performed after each approach, up to the next approach:
+    ``{class id: (k, 3)}`` (an approach's end under each of them). Each task's approach ends at its own place, so
+    a manipulation seen after an approach tells which place its hand reached."""
+    ends = np.asarray(ends, dtype=float)
+    approaches = [s for c in discovery.classes_ if c.kind == APPROACH for s in c.segments]
+    if ends.ndim != 2 or ends.shape != (len(approaches), 3):
+        raise InvalidInputError(f"ends must be ({len(approaches)}, 3), one per approach of the discovery; "
+                                f"got {ends.shape}")
+    kinds = {int(c.primitive_id): c.kind for c in discovery.classes_}
+    groups: dict[int, list[int]] = {}
+    for k, s in enumerate(approaches):
+        performed = set()
+        for pid, start, _ in discovery.segmentations_[s.demo]:
+            if start < s.end:
+                continue
+            if kinds[int(pid)] == APPROACH:
+                break
+            if kinds[int(pid)] == MANIPULATION:
+                performed.add(int(pid))
+        for pid in performed:
+            groups.setdefault(pid, []).append(k)
+    return {pid: ends[rows] for pid, rows in sorted(groups.items())}
