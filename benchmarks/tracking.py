@@ -125,7 +125,9 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         print(f"  episode {index:3d} ({demos[index].ground_truth.action}): RMS all {100 * summary['rms_m_all']:.1f} cm "
               f"(held still {100 * summary['baseline_rms_m_all']:.1f}), classes {summary['frame_accuracy']:.0%}, "
               f"{summary['hz']:.0f} Hz" + (f"; smoothed {100 * summary['smoothed']['rms_m_all']:.1f} cm, "
-                                         f"{summary['smoothed']['frame_accuracy']:.0%}" if lag else ""), flush=True)
+                                         f"{summary['smoothed']['frame_accuracy']:.0%}" if lag else "")
+              + ("" if summary.get("read_frame_accuracy") is None else
+                 f"; read from the block {summary['read_frame_accuracy']:.0%}"), flush=True)
     truth = np.concatenate([r["truth"] for r in runs])
     known = truth != UNKNOWN
     majority = np.bincount(truth[known]).argmax()
@@ -150,6 +152,9 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         "baseline_frame_accuracy": float(np.mean(truth[known] == majority)),
         "hz": float(np.median([r["hz"] for r in runs])),
     }
+    if all("read_classes" in r for r in runs):  # manipulations read again from the block (tracking/chain_reading.py)
+        read = np.concatenate([r["read_classes"] for r in runs])
+        pooled["read_frame_accuracy"] = float(np.mean(read[known] == truth[known]))
     found = [r["frames_to_converge"] for r in runs if r["frames_to_converge"] is not None]
     pooled["frames_to_converge_median"] = float(np.median(found)) if found else None
     if lag:
@@ -157,7 +162,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         for r in runs:
             del r["smoothed"]["recognized"]
     return {"pooled": pooled,
-            "episodes": [{k: v for k, v in r.items() if k not in ("recognized", "truth")} for r in runs]}
+            "episodes": [{k: v for k, v in r.items() if k not in ("recognized", "truth", "read_classes")}
+                         for r in runs]}
 
 
 def speed(models, demos, episode) -> dict:
@@ -192,6 +198,8 @@ def summarise(per_recording: dict) -> dict:
     summary = {key: spread([p[key] for p in pooled]) for key in
                ("rms_m_all", "rms_m_pooled", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
                 "baseline_frame_accuracy", "hz")}
+    if all("read_frame_accuracy" in p for p in pooled):
+        summary["read_frame_accuracy"] = spread([p["read_frame_accuracy"] for p in pooled])
     for marker in pooled[0]["rms_m"]:
         summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
     found, approaches = sum(p["approaches_converged"] for p in pooled), sum(p["approaches"] for p in pooled)

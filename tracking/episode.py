@@ -25,6 +25,7 @@ from hoap_actions.primitives.hmm.posture import PostureModel
 from hoap_actions.primitives.labels import runs
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.models.approach_ends import approach_ends_by_following_class
+from hoap_actions.primitives.models.manipulation_chains import ManipulationChain, manipulation_chains
 from hoap_actions.primitives.pipelines.mocap_cleaning import clean_demonstrations
 from hoap_actions.tracking.action_tracker import (
     FAR_LEAP_SHARE,
@@ -34,6 +35,7 @@ from hoap_actions.tracking.action_tracker import (
     TrackedFrame,
 )
 from hoap_actions.tracking.approach_goal import read_approach_end
+from hoap_actions.tracking.chain_reading import read_manipulation_chain
 from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.smoothing import SmoothedFrame
@@ -76,6 +78,8 @@ class TrackResult:
     smoothed: list[SmoothedFrame] = field(default_factory=list)  # one per frame when lag > 0
     objects_seen: list[np.ndarray | None] = field(default_factory=list)  # per frame, the block last seen whole
     approach_places: dict[int, np.ndarray] = field(default_factory=dict)  # training approach ends by what followed
+    chains: list[ManipulationChain] = field(default_factory=list)  # the training manipulations' chains of classes
+    action_of_class: dict[int, int] = field(default_factory=dict)  # class id -> action id
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers, of the three pooled (the paper's figure) and of all, frame
@@ -105,10 +109,28 @@ class TrackResult:
             "approaches_converged": len(found),
             "approaches": len(self.approach_ends),
             **self._task_read_scores(),
+            **self._chain_read_scores(),
             **{key: scores[key] for key in ("frame_accuracy", "kind_accuracy", "recognized")},
             "truth": self.truth_classes.tolist(),
             **smoothed,
         }
+
+    def _recognized(self) -> list[int]:
+        """The most probable class of each frame, as read ``lag`` frames later when smoothed."""
+        return [max(f.class_probabilities, key=f.class_probabilities.get)
+                for f in (self.smoothed if self.lag else self.frames)]
+
+    def _chain_read_scores(self) -> dict:
+        """The classes with the manipulation read again from the block's seen motion (smoothed classes with a lag;
+        :mod:`~hoap_actions.tracking.chain_reading`) and their agreement with discovery's; nothing without the
+        block's sightings or the models' chains."""
+        if not (self.objects_seen and self.chains and self.action_of_class):
+            return {}
+        recognized = self._recognized()
+        read = read_manipulation_chain(recognized, self.objects_seen, self.chains, self.action_of_class, self.kinds)
+        known = self.truth_classes != UNKNOWN
+        agreement = float(np.mean(read[known] == self.truth_classes[known])) if known.any() else None
+        return {"read_classes": read.tolist(), "read_frame_accuracy": agreement}
 
     def _task_read_scores(self) -> dict:
         """Each approach's end read from the manipulation recognised after it (smoothed classes with a lag): the
@@ -116,7 +138,7 @@ class TrackResult:
         (m); nothing without the block's sightings or the models' approach places."""
         if not (self.objects_seen and self.approach_places):
             return {}
-        classes = [f.class_id for f in (self.smoothed if self.lag else self.frames)]
+        classes = self._recognized()
         errors = []
         for _, end, target in self.approach_ends:
             following = next((c for c in classes[end - 1:] if self.kinds.get(c) == MANIPULATION), None)
@@ -209,7 +231,8 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, observe.spent,
                        body.torso_base, silhouette, kept, pictures, len(views), _kinds(models), lag,
-                       tracker.smoothed_frames(final=True) if lag else [], seen, _approach_places(models))
+                       tracker.smoothed_frames(final=True) if lag else [], seen, _approach_places(models),
+                       manipulation_chains(models.discovery_), _action_of_class(models))
 
 
 @dataclass
@@ -375,7 +398,8 @@ def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: 
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, spent,
                        body.torso_base, silhouette=False, views=0, kinds=_kinds(models), lag=lag,
                        smoothed=tracker.smoothed_frames(final=True) if lag else [], objects_seen=seen,
-                       approach_places=_approach_places(models))
+                       approach_places=_approach_places(models), chains=manipulation_chains(models.discovery_),
+                       action_of_class=_action_of_class(models))
 
 
 def pose_floor(models: ActionModels, demos: Demonstrations, episode: int, fit_effect: bool = False,
@@ -438,6 +462,10 @@ def _approach_places(models: ActionModels) -> dict[int, np.ndarray]:
     if models.approach_ends_ is None:
         return {}
     return approach_ends_by_following_class(models.discovery_, models.approach_ends_)
+
+
+def _action_of_class(models: ActionModels) -> dict[int, int]:
+    return {int(cid): int(action) for cid, action in models.action_of_class_.items()}
 
 
 def _kinds(models: ActionModels) -> dict[int, str]:
