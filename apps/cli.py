@@ -264,6 +264,9 @@ def _track(args: argparse.Namespace) -> int:
         print(f"smoothed {args.lag} frames behind: RMS pooled {100 * smoothed['rms_m_pooled']:.1f} cm, all markers "
               f"{100 * smoothed['rms_m_all']:.1f} cm"
               + ("" if smoothed["frame_accuracy"] is None else f"; class agrees on {smoothed['frame_accuracy']:.0%}"))
+    if summary.get("read_frame_accuracy") is not None:
+        print(f"the manipulation read again as the chain the block's displacement fits: class agrees on "
+              f"{summary['read_frame_accuracy']:.0%}")
     return 0
 
 
