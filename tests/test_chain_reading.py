@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.models.shipped import load_default_models
 from hoap_actions.primitives.models.manipulation_chains import ManipulationChain, manipulation_chains
 from hoap_actions.tracking import track_markers_episode
@@ -73,6 +74,11 @@ def test_the_chain_the_block_went_by_splits_the_manipulation_in_proportion_to_it
 ])
 def test_the_reading_is_left_as_it_was_where_the_block_cannot_tell(classes, blocks):
     np.testing.assert_array_equal(read_manipulation_chain(classes, blocks, CHAINS, ACTIONS, KINDS), classes)
+
+
+def test_one_sighting_per_frame_is_asked_for():
+    with pytest.raises(InvalidInputError, match="one class and one block sighting"):
+        read_manipulation_chain(READ, seen(0.10)[:-1], CHAINS, ACTIONS, KINDS)
 
 
 def test_a_track_scores_its_classes_read_from_the_block(small_demos):

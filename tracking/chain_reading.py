@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import MANIPULATION
 from hoap_actions.primitives.models.manipulation_chains import ManipulationChain
 
@@ -32,6 +33,9 @@ def read_manipulation_chain(classes: Sequence[int], blocks_seen: Sequence[np.nda
     most performed), its pieces splitting the frames in proportion to their mean durations. As recognised when no
     frame is a manipulation, the block was not seen before and after, or no chain fits."""
     out = np.array(classes, dtype=int)
+    if out.ndim != 1 or len(blocks_seen) != len(out):
+        raise InvalidInputError(f"give one class and one block sighting (or None) per frame; got classes of shape "
+                                f"{out.shape} and {len(blocks_seen)} sightings")
     manipulating = np.flatnonzero([kinds.get(int(c)) == MANIPULATION for c in out])
     if not manipulating.size:
         return out
