@@ -41,9 +41,9 @@ def test_the_chains_are_the_training_runs_of_manipulations_with_their_mean_displ
     np.testing.assert_allclose(second.displacement, [0.0, 0.05, 0.0])
 
 
-CHAINS = [ManipulationChain((7, 8), np.array([0.05, 0.0, 0.0]), np.array([2.0, 6.0]), 30),
-          ManipulationChain((7, 9), np.array([0.10, 0.0, 0.0]), np.array([1.0, 1.0]), 20),
-          ManipulationChain((7, 5), np.array([0.10, 0.0, 0.0]), np.array([1.0, 1.0]), 40),
+CHAINS = [ManipulationChain((7, 8), np.array([0.05, 0.0, 0.0]), np.array([2.0, 4.0]), 30),
+          ManipulationChain((7, 9), np.array([0.10, 0.0, 0.0]), np.array([1.0, 2.0]), 20),
+          ManipulationChain((7, 5), np.array([0.10, 0.0, 0.0]), np.array([2.0, 6.0]), 40),
           ManipulationChain((4,), np.array([0.10, 0.0, 0.0]), np.array([1.0]), 90)]
 ACTIONS = {7: 1, 8: 1, 9: 1, 5: 1, 4: 3}
 KINDS = {0: "approach", 7: "manipulation", 8: "manipulation", 9: "manipulation", 5: "manipulation",
@@ -55,16 +55,18 @@ def seen(moved: float) -> list[np.ndarray]:
     return [np.zeros(3)] * 8 + [np.array([moved, 0.0, 0.0])] * 2
 
 
-def test_the_chain_the_block_went_by_splits_the_manipulation_in_proportion_to_its_pieces():
-    # moved 10 cm: (7, 9) and (7, 5) fit; (7, 9) shares more frames with the reading; (4,) is another action
+def test_the_chain_the_block_went_by_lasts_its_pieces_training_durations_from_the_manipulations_start():
+    # moved 10 cm: (7, 9) and (7, 5) fit; (7, 9) shares more frames with the reading; (4,) is another action. It lasts
+    # 1 + 2 frames: the rest of what was read as manipulation goes to the remove read after it
     np.testing.assert_array_equal(read_manipulation_chain(READ, seen(0.10), CHAINS, ACTIONS, KINDS),
-                                  [0, 0, 7, 7, 7, 9, 9, 9, 2, 2])
-    # moved 5 cm: (7, 8), its six frames split 2 : 6
+                                  [0, 0, 7, 9, 9, 2, 2, 2, 2, 2])
+    # moved 5 cm: (7, 8), 2 + 4 frames, as long as the reading
     np.testing.assert_array_equal(read_manipulation_chain(READ, seen(0.049), CHAINS, ACTIONS, KINDS),
                                   [0, 0, 7, 7, 8, 8, 8, 8, 2, 2])
-    # no frame shared beyond the lift: the most performed of the fitting chains
+    # no frame shared beyond the lift: the most performed of the fitting chains, (7, 5), 2 + 6 frames, longer than
+    # the reading: into the frames read as the remove, up to the end
     np.testing.assert_array_equal(read_manipulation_chain([0, 0, 7, 7, 8, 8, 8, 8, 2, 2], seen(0.10), CHAINS, ACTIONS,
-                                                          KINDS), [0, 0, 7, 7, 7, 5, 5, 5, 2, 2])
+                                                          KINDS), [0, 0, 7, 7, 5, 5, 5, 5, 5, 5])
 
 
 @pytest.mark.parametrize("classes, blocks", [

@@ -30,7 +30,8 @@ def read_manipulation_chain(classes: Sequence[int], blocks_seen: Sequence[np.nda
     manipulation) read again: the chain of the action most of them were read as whose training displacement lies
     within ``tolerance_m`` of the block's (``blocks_seen``: per frame, where it was last seen at rest, (3,) m or None;
     from the manipulation's first frame to the last frame), the one sharing most frames with the reading (then the
-    most performed), its pieces splitting the frames in proportion to their mean durations. As recognised when no
+    most performed). From the manipulation's first frame the chain lasts its pieces' mean training durations (the
+    frames read as manipulation beyond them go to what was read after it), each piece in turn. As recognised when no
     frame is a manipulation, the block was not seen before and after, or no chain fits."""
     out = np.array(classes, dtype=int)
     if out.ndim != 1 or len(blocks_seen) != len(out):
@@ -52,7 +53,12 @@ def read_manipulation_chain(classes: Sequence[int], blocks_seen: Sequence[np.nda
     if not fitting:
         return out
     chosen = max(fitting, key=lambda chain: (int(np.isin(read, chain.classes).sum()), chain.count))
-    cuts = start + np.rint(np.cumsum(chosen.durations) / chosen.durations.sum() * (stop - start)).astype(int)
+    following = next((int(c) for c in out[stop:] if kinds.get(int(c)) != MANIPULATION), None)
+    length = min(len(out) - start, int(round(chosen.durations.sum())))
+    if start + length < stop and following is not None:  # read as manipulation for longer than the chain lasts
+        out[start + length:stop] = following
+    stop = start + length
+    cuts = start + np.rint(np.cumsum(chosen.durations) / chosen.durations.sum() * length).astype(int)
     for cid, begin, end in zip(chosen.classes, np.r_[start, cuts[:-1]], cuts):
         out[begin:end] = cid
     return out
