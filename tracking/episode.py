@@ -86,8 +86,9 @@ class TrackResult:
         rate, approach-end error and frames to find it, per-frame agreement of the recognised class with
         discovery's (and of its kind: approach, manipulation or remove), and both class sequences; with a
         lag, the same scores of the smoothed estimates under ``"smoothed"``; with the block's sightings and the
-        models' approach places, each approach's end read from the manipulation recognised after it
-        (:mod:`~hoap_actions.tracking.approach_goal`), scored as the filter's."""
+        models' approach places and chains, each approach's end read from the manipulation recognised after it
+        (:mod:`~hoap_actions.tracking.approach_goal`), scored as the filter's, and the classes with the manipulation
+        read again as the chain the block's displacement fits (:mod:`~hoap_actions.tracking.chain_reading`)."""
         scores = self._scores(self.frames)
         errors, found = [], []
         for start, end, target in self.approach_ends:
