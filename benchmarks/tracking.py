@@ -191,9 +191,9 @@ def share_found(found: int, approaches: int) -> dict:
 
 
 def summarise(per_recording: dict) -> dict:
-    """Mean and 95 % interval over the recordings of each pooled figure; the approaches whose estimated end
-    came within 2 cm, over all recordings, with their Wilson interval."""
-
+    """Mean and 95 % interval over the recordings of each pooled figure (the classes read again from the block's
+    displacement among them); the approaches whose estimated end came within 2 cm, the filter's and read from the
+    task, over all recordings, with their Wilson intervals."""
     pooled = [r["pooled"] for r in per_recording.values()]
     summary = {key: spread([p[key] for p in pooled]) for key in
                ("rms_m_all", "rms_m_pooled", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
