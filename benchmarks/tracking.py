@@ -146,12 +146,13 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         "phi_error_m": float(np.median([r["phi_error_m"] for r in runs if r["phi_error_m"] is not None])),
         "approaches_converged": sum(r["approaches_converged"] for r in runs),
         "approaches": sum(r["approaches"] for r in runs),
-        "approaches_read_from_task": sum(r.get("approaches_read_from_task", 0) for r in runs),
         "kind_accuracy": float(np.average([r["kind_accuracy"] for r in runs],  # each episode's share of known frames
                                           weights=[np.sum(np.asarray(r["truth"]) != UNKNOWN) for r in runs])),
         "baseline_frame_accuracy": float(np.mean(truth[known] == majority)),
         "hz": float(np.median([r["hz"] for r in runs])),
     }
+    if all("approaches_read_from_task" in r for r in runs):  # approach ends read from the task (approach_goal.py)
+        pooled["approaches_read_from_task"] = sum(r["approaches_read_from_task"] for r in runs)
     if all("read_classes" in r for r in runs):  # manipulations read again from the block (tracking/chain_reading.py)
         read = np.concatenate([r["read_classes"] for r in runs])
         pooled["read_frame_accuracy"] = float(np.mean(read[known] == truth[known]))
@@ -204,9 +205,9 @@ def summarise(per_recording: dict) -> dict:
         summary[f"rms_m_{marker}"] = spread([p["rms_m"][marker] for p in pooled])
     found, approaches = sum(p["approaches_converged"] for p in pooled), sum(p["approaches"] for p in pooled)
     summary["approach_end_within_2cm"] = share_found(found, approaches)
-    # the same approaches' ends read from the manipulation recognised after each (tracking/approach_goal.py)
-    summary["approach_end_read_from_task_within_2cm"] = share_found(
-        sum(p["approaches_read_from_task"] for p in pooled), approaches)
+    if all("approaches_read_from_task" in p for p in pooled):  # the same ends read from the task that followed
+        summary["approach_end_read_from_task_within_2cm"] = share_found(
+            sum(p["approaches_read_from_task"] for p in pooled), approaches)
     if "smoothed" in pooled[0]:  # the fixed-lag estimates of the same filter runs
         for key in ("rms_m_all", "rms_m_pooled", "frame_accuracy"):
             summary[f"smoothed_{key}"] = spread([p["smoothed"][key] for p in pooled])

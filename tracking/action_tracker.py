@@ -369,11 +369,9 @@ class ActionTracker:
         self._propagate()
         markers = self.markers()
         colour, depth_evidence = self._image_evidence(markers, images, masks, depths)
-        if depth_evidence is None:
-            return self._weigh(markers, colour)
-        if self.depth_weighs == "pose":
-            return self._weigh(markers, colour, depth_evidence)
-        return self._weigh(markers, colour + depth_evidence)
+        if depth_evidence is not None and self.depth_weighs == "filter":  # every particle's weight, not the pose's
+            colour, depth_evidence = colour + depth_evidence, None
+        return self._weigh(markers, colour, depth_evidence)
 
     def step_markers(self, observed: np.ndarray, sigma_m: float = MARKER_SIGMA_M,
                      object_position: np.ndarray | None = None) -> TrackedFrame:

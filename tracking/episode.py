@@ -90,6 +90,7 @@ class TrackResult:
         (:mod:`~hoap_actions.tracking.approach_goal`), scored as the filter's, and the classes with the manipulation
         read again as the chain the block's displacement fits (:mod:`~hoap_actions.tracking.chain_reading`)."""
         scores = self._scores(self.frames)
+        recognized = self._recognized()  # the classes both readings of the finished track start from
         errors, found = [], []
         for start, end, target in self.approach_ends:
             gap = np.linalg.norm(np.array([self._approach_end(f) for f in self.frames[start:end]]) - target, axis=1)
@@ -109,8 +110,8 @@ class TrackResult:
             "frames_to_converge": float(np.median(found)) if found else None,
             "approaches_converged": len(found),
             "approaches": len(self.approach_ends),
-            **self._task_read_scores(),
-            **self._chain_read_scores(),
+            **self._task_read_scores(recognized),
+            **self._chain_read_scores(recognized),
             **{key: scores[key] for key in ("frame_accuracy", "kind_accuracy", "recognized")},
             "truth": self.truth_classes.tolist(),
             **smoothed,
@@ -121,25 +122,23 @@ class TrackResult:
         return [max(f.class_probabilities, key=f.class_probabilities.get)
                 for f in (self.smoothed if self.lag else self.frames)]
 
-    def _chain_read_scores(self) -> dict:
+    def _chain_read_scores(self, recognized: list[int]) -> dict:
         """The classes with the manipulation read again from the block's seen motion (smoothed classes with a lag;
         :mod:`~hoap_actions.tracking.chain_reading`) and their agreement with discovery's; nothing without the
         block's sightings or the models' chains."""
         if not (self.objects_seen and self.chains and self.action_of_class):
             return {}
-        recognized = self._recognized()
         read = read_manipulation_chain(recognized, self.objects_seen, self.chains, self.action_of_class, self.kinds)
         known = self.truth_classes != UNKNOWN
         agreement = float(np.mean(read[known] == self.truth_classes[known])) if known.any() else None
         return {"read_classes": read.tolist(), "read_frame_accuracy": agreement}
 
-    def _task_read_scores(self) -> dict:
+    def _task_read_scores(self, classes: list[int]) -> dict:
         """Each approach's end read from the manipulation recognised after it (smoothed classes with a lag): the
         approaches within :data:`CONVERGED_M` of the true end at the approach's last frame and the median error
         (m); nothing without the block's sightings or the models' approach places."""
         if not (self.objects_seen and self.approach_places):
             return {}
-        classes = self._recognized()
         errors = []
         for _, end, target in self.approach_ends:
             following = next((c for c in classes[end - 1:] if self.kinds.get(c) == MANIPULATION), None)

@@ -44,7 +44,6 @@ def fit_approach_ends(discovery, hands: Sequence[np.ndarray], objects: Sequence[
     return ends
 
 
-
 def approach_ends_by_following_class(discovery, ends: np.ndarray) -> dict[int, np.ndarray]:
     """The training approach ends ``ends`` (``(n, 3)``, as :func:`fit_approach_ends` gives them for ``discovery``)
     grouped by the manipulation classes its demonstration performed after each approach, up to the next approach:
