@@ -19,17 +19,6 @@ from hoap_actions.primitives.models.class_models import marker_features
 from hoap_actions.primitives.models.models_directory import MANIFEST
 
 
-@pytest.fixture(scope="module")
-def small(small_recording, small_demos):
-    """The ``small`` preset (push, move, rotate, approach), its discovery, and models fitted on it."""
-    path, demos = small_recording, small_demos
-    lengths = [e.T for e in demos]
-    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
-    discovery = PrimitiveDiscovery().fit(np.concatenate([e.O for e in demos]), lengths, H)
-    models = ActionModels().fit(H, lengths, discovery, demos.fps, demos.marker_names)
-    return demos, discovery, models, path
-
-
 def pieces_of(demos, discovery, demo):
     return [demos[demo].H[start:end] for _, start, end in discovery.segmentations_[demo]]
 
@@ -495,15 +484,6 @@ def test_the_object_parse_of_a_whole_movement_follows_the_objects_own_classes(sm
         assert [s.class_id for s in decoded] == [c for c, *_ in runs(labels) if c != -1]
         voted = np.concatenate([np.full(s.end - s.start, s.class_id) for s in decoded])
         assert np.mean(voted == labels[decoded[0].start:decoded[-1].end]) > 0.95
-
-
-@pytest.fixture(scope="module")
-def posed(small):
-    """The small preset's models with pose classes (approach and remove refitted with a thin-plate mean)."""
-    demos, discovery, _, _ = small
-    lengths = [e.T for e in demos]
-    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
-    return ActionModels(pose_mean_model="tps", smoothing=0.5).fit(H, lengths, discovery, demos.fps, demos.marker_names)
 
 
 def test_pose_classes_refit_every_class_and_leave_the_recognition_classes_alone(small, posed):

@@ -55,7 +55,7 @@ again that many frames later through the particles' lineage (:mod:`~hoap_actions
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,7 +63,7 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.tracking.image_evidence import depths_or_holes, image_log_likelihoods, within_unit_range
+from hoap_actions.tracking.image_evidence import depths_or_holes, image_log_likelihoods, per_camera, within_unit_range
 from hoap_actions.tracking.object_evidence import OBJECT_MOVING_M, OBJECT_STILL_M, ObjectEvidence
 from hoap_actions.tracking.poses import mean_poses
 from hoap_actions.tracking.poses import pose_proposal as _pose_proposal
@@ -93,6 +93,7 @@ LEAP_CHAIN_SHARE = 0.15  # a leap is uniform over up to this share of the chain'
 # 0.1-0.2 cm, so it is off by default)
 FAR_LEAP_SHARE = 0.01
 REDRAW_SHARE = 0.05  # particles per frame whose end is drawn again from their class's training effects
+MODE_REDRAW_SHARE = 0.01  # particles per frame whose hand mode is drawn again from the modes' prior
 # m, jitter of an end drawn at the seen block: where the hand ends beside it varies by 4-5 cm (validation)
 OBJECT_END_SPREAD_M = 0.045
 # m, jitter of an end drawn from a training approach's end at the seen block (validation: 0.005 / 0.01 / 0.02 m)
@@ -261,6 +262,7 @@ class ActionTracker:
         self._ids = np.array(sorted(models.classes))
         self._manipulations = self._evidence.manipulations
         self._n_markers = len(models.marker_names)
+        self._n_modes = 1 if models.hand_modes is None else models.hand_modes.n_modes
         self._grammar_rows = self._successor_table()
         self._approach_ends = models.approach_ends if models.object_end is None else None
         self._object_end_spread_m = OBJECT_END_SPREAD_M
@@ -330,6 +332,7 @@ class ActionTracker:
         first = self._rng.choice(targets, size=self.n_particles, p=start_row / start_row.sum())
         first = np.where(first == EXIT, targets[np.argmax(start_row[:-1])], first)
         self.class_id = first.astype(int)
+        self.mode = self._draw_modes(self.n_particles)
         self.state = np.zeros(self.n_particles)
         self.speed = np.exp(self._rng.normal(0.0, SPEED_SPREAD, self.n_particles))
         self.offset = np.zeros((self.n_particles, self.poses.dim))
@@ -344,6 +347,12 @@ class ActionTracker:
             effects = self._training_effects(cid, chosen.size)
             self.start[chosen] = effects[:, :3]
             self.end[chosen] = effects[:, 3:] + self._rng.normal(0.0, NEW_END_SPREAD_M, (chosen.size, 3))
+
+    def _draw_modes(self, n: int) -> np.ndarray:
+        """``n`` hand modes drawn from the models' prior (all 0 for models without modes, drawing nothing)."""
+        if self.models.hand_modes is None:
+            return np.zeros(n, dtype=int)
+        return self._rng.choice(self._n_modes, size=n, p=self.models.hand_modes.prior)
 
     def _training_effects(self, class_id: int, n: int) -> np.ndarray:
         """``n`` full effects (6,) drawn from class ``class_id``'s training effects."""
@@ -362,9 +371,10 @@ class ActionTracker:
         ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen);
         ``object_whole`` False: it is partly hidden (a hand over it), its sighting evidence of motion only, goals
         still drawn where it was last seen whole."""
-        images = self._per_camera(edges, "edge image", within_unit_range)
-        masks = None if foreground is None else self._per_camera(foreground, "foreground mask", within_unit_range)
-        depths = None if depth is None else self._per_camera(depth, "depth image", depths_or_holes)
+        images = per_camera(edges, self.cameras, "edge image", within_unit_range)
+        masks = None if foreground is None else per_camera(foreground, self.cameras, "foreground mask",
+                                                           within_unit_range)
+        depths = None if depth is None else per_camera(depth, self.cameras, "depth image", depths_or_holes)
         self._see_object(object_position, bool(object_whole))
         self._propagate()
         markers = self.markers()
@@ -437,24 +447,11 @@ class ActionTracker:
             self._resample(weights)
         return frame
 
-    def _per_camera(self, images: np.ndarray | Sequence[np.ndarray], what: str,
-                    problem: Callable[[np.ndarray], str | None]) -> list[np.ndarray]:
-        """One checked image per camera: the camera's size, and values that ``problem`` finds nothing wrong
-        with (it says what is accepted otherwise)."""
-        images = [images] if isinstance(images, np.ndarray) else list(images)
-        if len(images) != len(self.cameras):
-            raise InvalidInputError(f"give one {what} per camera ({len(self.cameras)}); got {len(images)}")
-        for image, camera in zip(images, self.cameras):
-            if np.shape(image) != (camera.height, camera.width):
-                raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
-                                        f"got {np.shape(image)}")
-            wrong = problem(np.asarray(image))
-            if wrong:
-                raise InvalidInputError(f"a {what} must hold {wrong}")
-        return images
-
     def _propagate(self) -> None:
         targets, _, table = self._grammar_rows
+        if self.models.hand_modes is not None:  # a few particles try another way of holding the hand
+            redraw = np.flatnonzero(self._rng.random(self.n_particles) < MODE_REDRAW_SHARE)
+            self.mode[redraw] = self._draw_modes(redraw.size)
         u = self._rng.random(self.n_particles)
         leaving, successors = [], []
         for cid in np.unique(self.class_id):
@@ -542,15 +539,17 @@ class ActionTracker:
 
     def markers(self, particles: np.ndarray | None = None) -> np.ndarray:
         """The body pose ``(n, M, 3)`` of ``particles`` (indices; all by default): each one's PHMM mean
-        markers at its phi, between states ``floor(s)`` and ``ceil(s)`` (:func:`mean_poses`, unchecked),
-        moved by its pose state (:attr:`poses`)."""
+        markers (its class's model for its hand mode) at its phi, between states ``floor(s)`` and ``ceil(s)``
+        (:func:`mean_poses`, unchecked), moved by its pose state (:attr:`poses`)."""
         particles = np.arange(self.n_particles) if particles is None else np.asarray(particles)
         out = np.empty((particles.size, self._n_markers, 3))
-        for cid in np.unique(self.class_id[particles]):
-            rows = np.flatnonzero(self.class_id[particles] == cid)
+        keys = self.class_id[particles] * self._n_modes + self.mode[particles]
+        for key in np.unique(keys):
+            rows = np.flatnonzero(keys == key)
             chosen = particles[rows]
+            cid, mode = divmod(int(key), self._n_modes)
             phi = np.hstack([self.start[chosen], self.end[chosen]])
-            pose = self.poses.pose(cid, self.state[chosen], phi, self.offset[chosen])
+            pose = self.poses.pose(cid, self.state[chosen], phi, self.offset[chosen], mode)
             out[rows] = pose.reshape(-1, self._n_markers, 3)
         return out
 
@@ -591,6 +590,7 @@ class ActionTracker:
         if self._lineage is not None:
             self._lineage.resampled(index)
         self.class_id, self.state, self.speed = self.class_id[index], self.state[index], self.speed[index]
+        self.mode = self.mode[index]
         self.offset = self.offset[index]
         self.start, self.end, self.resting = self.start[index], self.end[index], self.resting[index]
         self.object_at = self.object_at[index]

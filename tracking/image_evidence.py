@@ -13,16 +13,36 @@ divides each by twice its sigma squared and sums them over the views.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import numpy as np
 
+from hoap_actions.errors import InvalidInputError
 from hoap_actions.vision.body_model import BodyModel, ProjectedBodies, Projector
 
-__all__ = ["DEPTH_TRUNCATION_M", "contour_misfit", "depth_misfit", "depths_or_holes", "image_log_likelihoods", "sample",
-           "silhouette_misfit", "within_unit_range"]
+__all__ = ["DEPTH_TRUNCATION_M", "contour_misfit", "depth_misfit", "depths_or_holes", "image_log_likelihoods",
+           "per_camera", "sample", "silhouette_misfit", "within_unit_range"]
 
 DEPTH_TRUNCATION_M = 0.05  # a depth residual counts at most this much: an occluded or mismeasured point is not a pose
 FOREGROUND_STRIDE_PX = 4  # the foreground is read on this pixel grid (a limb is 6-15 px wide at 320 x 240)
 FOREGROUND_SAMPLES = 200  # at most this many foreground pixels per view are checked for cover
+
+
+def per_camera(images: np.ndarray | Sequence[np.ndarray], cameras: Sequence[Projector], what: str,
+               problem: Callable[[np.ndarray], str | None]) -> list[np.ndarray]:
+    """One checked image per camera: the camera's size, and values that ``problem`` finds nothing wrong with
+    (it says what is accepted otherwise)."""
+    images = [images] if isinstance(images, np.ndarray) else list(images)
+    if len(images) != len(cameras):
+        raise InvalidInputError(f"give one {what} per camera ({len(cameras)}); got {len(images)}")
+    for image, camera in zip(images, cameras):
+        if np.shape(image) != (camera.height, camera.width):
+            raise InvalidInputError(f"a {what} must be ({camera.height}, {camera.width}) for its camera; "
+                                    f"got {np.shape(image)}")
+        wrong = problem(np.asarray(image))
+        if wrong:
+            raise InvalidInputError(f"a {what} must hold {wrong}")
+    return images
 
 
 def visible_mean(values: np.ndarray) -> np.ndarray:

@@ -95,9 +95,15 @@ class PoseProposal(Protocol):
         """The pose states ``(n, dim)`` one frame on, for particles of class ``class_id`` at ``states`` (n,)."""
         ...
 
-    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray) -> np.ndarray:
-        """Markers ``(n, 3 M)`` of particles of class ``class_id`` at continuous ``states``, effects ``phi`` (n, 6)."""
+    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray,
+             mode: int = 0) -> np.ndarray:
+        """Markers ``(n, 3 M)`` of particles of class ``class_id`` holding the hand in ``mode`` (the models' hand
+        modes; any with none) at continuous ``states``, effects ``phi`` (n, 6)."""
         ...
+
+
+def _mode_classes(models: TrackingModels) -> dict[tuple[int, int], ClassModel]:
+    return {} if models.hand_modes is None else dict(models.hand_modes.classes)
 
 
 class OffsetPoses:
@@ -107,6 +113,7 @@ class OffsetPoses:
 
     def __init__(self, models: TrackingModels) -> None:
         self._classes = models.classes
+        self._by_mode = _mode_classes(models)
         self._n_markers = len(models.marker_names)
         self.dim = 3 * self._n_markers
         self._sd = {cid: np.sqrt(_position_variances(model, self.dim)) for cid, model in models.classes.items()}
@@ -116,8 +123,10 @@ class OffsetPoses:
         noise = rng.normal(0.0, 1.0, spread.shape) * spread
         return POSE_MEMORY * pose_state + np.sqrt(1.0 - POSE_MEMORY**2) * noise
 
-    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray) -> np.ndarray:
-        return _mean_poses(self._classes[class_id], states, phi, self._n_markers) + pose_state
+    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray,
+             mode: int = 0) -> np.ndarray:
+        model = self._by_mode.get((class_id, mode), self._classes[class_id])
+        return _mean_poses(model, states, phi, self._n_markers) + pose_state
 
 
 class TurnedHandOffsets(OffsetPoses):
@@ -144,8 +153,9 @@ class TurnedHandOffsets(OffsetPoses):
         turn = HAND_TURN_MEMORY * pose_state[:, self._offsets:] + np.sqrt(1.0 - HAND_TURN_MEMORY**2) * noise
         return np.hstack([offsets, turn])
 
-    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray) -> np.ndarray:
-        pose = super().pose(class_id, states, phi, pose_state[:, :self._offsets])
+    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray,
+             mode: int = 0) -> np.ndarray:
+        pose = super().pose(class_id, states, phi, pose_state[:, :self._offsets], mode)
         pose[:, HAND.start + 3:] = turn_hand(pose[:, HAND], *pose_state[:, self._offsets:].T)
         return pose
 
@@ -179,6 +189,7 @@ class HandPoses:
         if not (np.isfinite(swivel_sd) and swivel_sd >= 0):
             raise InvalidInputError(f"swivel_sd must be >= 0 (rad); got {swivel_sd!r}")
         self._classes = models.classes
+        self._by_mode = _mode_classes(models)
         self.posture = models.posture
         self.swivel_sd, self.trunk = float(swivel_sd), bool(trunk)
         self.dim = 7 if self.trunk else 4
@@ -194,8 +205,9 @@ class HandPoses:
         noise = rng.normal(0.0, 1.0, spread.shape) * spread
         return POSE_MEMORY * pose_state + np.sqrt(1.0 - POSE_MEMORY**2) * noise
 
-    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray) -> np.ndarray:
-        pose = _mean_poses(self._classes[class_id], states, phi, len(MARKER_NAMES))
+    def pose(self, class_id: int, states: np.ndarray, phi: np.ndarray, pose_state: np.ndarray,
+             mode: int = 0) -> np.ndarray:
+        pose = _mean_poses(self._by_mode.get((class_id, mode), self._classes[class_id]), states, phi, len(MARKER_NAMES))
         shift = pose_state[:, :3]
         pose[:, HAND] += np.tile(shift, HAND_MARKERS)
         if self.posture is not None:

@@ -23,6 +23,7 @@ from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.hmm.posture import PostureModel, choose_alpha
 from hoap_actions.primitives.models.action_models import ActionModels
 from hoap_actions.primitives.models.class_models import ClassModel
+from hoap_actions.primitives.models.hand_modes import HandModes
 
 __all__ = ["POSTURE_GROUPS", "TrackingModels", "posture_from_recording"]
 
@@ -40,7 +41,8 @@ class TrackingModels:
     the classes' training effects (:attr:`ActionTracker.hand_from_object`) and uses its default spread.
     ``approach_ends``: where the training approaches ended, ``(n, 3)`` (the hand's x and y from the object's, its
     height; ``ActionModels.approach_ends_``), from which the tracker draws approach goals around a seen block
-    when ``object_end`` is not given."""
+    when ``object_end`` is not given. ``hand_modes``: the ways the hand is held through a demonstration, with the
+    classes refitted per mode (``ActionModels.hand_modes_``); the tracker's particles then hold a mode each."""
 
     classes: Mapping[int, ClassModel]
     grammar: ActionGrammar
@@ -49,6 +51,7 @@ class TrackingModels:
     posture: PostureModel | None = None
     object_end: tuple[np.ndarray, float] | None = None
     approach_ends: np.ndarray | None = None
+    hand_modes: HandModes | None = None
 
     def __post_init__(self) -> None:
         if not self.classes:
@@ -71,6 +74,11 @@ class TrackingModels:
                                                or not np.all(np.isfinite(self.approach_ends))):
             raise InvalidInputError(f"approach_ends must be finite (n, 3) rows (m), n >= 1; got shape "
                                     f"{np.shape(self.approach_ends)}")
+        if self.hand_modes is not None:
+            strangers = sorted({cid for cid, _ in self.hand_modes.classes} - {int(c) for c in self.classes})
+            if strangers:
+                raise InvalidInputError(f"hand modes refit classes {strangers} that have no model (models: "
+                                        f"{sorted(self.classes)})")
         if self.posture is not None:
             check_is_fitted(self.posture)
             if tuple(self.marker_names) != MARKER_NAMES:
@@ -84,7 +92,8 @@ class TrackingModels:
         (``pose_classes_``: every class, or approach and remove in models learned before manipulations were
         posed) when they have them; models without (learned before them, or without ``pose_mean_model``) track
         with their recognition classes, and a warning says so. The approaches' training ends come along
-        (``approach_ends_``); models learned with object poses before they were kept warn that they lack them."""
+        (``approach_ends_``); models learned with object poses before they were kept warn that they lack them. So do
+        the hand modes (``hand_modes_``), when the models have them."""
         check_is_fitted(models)
         posture = posture if posture is not None else getattr(models, "posture_", None)
         if models.pose_mean_model is None:  # learned without them, or loaded from a directory made before them
@@ -98,7 +107,8 @@ class TrackingModels:
                           "draws approach goals around the seen block with one spread; learn them again for the "
                           "tracker's figures", MissingModelPartWarning, stacklevel=2)
         return cls({**models.classes_, **models.pose_classes_}, models.grammar_, tuple(models.marker_names_),
-                   int(models.discovery_.hand_marker), posture, approach_ends=ends)
+                   int(models.discovery_.hand_marker), posture, approach_ends=ends,
+                   hand_modes=getattr(models, "hand_modes_", None))
 
 
 def posture_from_recording(demos: Demonstrations, n_groups: int = POSTURE_GROUPS) -> PostureModel:

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import ExtrapolationWarning, InvalidInputError, NotFittedError
 from hoap_actions.outputs import claimed_directory
 from hoap_actions.primitives.base import Estimator, check_is_fitted
@@ -80,6 +81,7 @@ from hoap_actions.primitives.models.class_models import (
 )
 from hoap_actions.primitives.models.connected_recognition import exit_probability
 from hoap_actions.primitives.models.decoding import ActionDecoding
+from hoap_actions.primitives.models.hand_modes import HandModes, fit_hand_modes
 from hoap_actions.primitives.models.models_directory import (
     FORMAT_VERSION,
     KIND,
@@ -138,6 +140,9 @@ class ActionModels(ActionDecoding, Estimator):
         ``"tps"`` or ``"linear"``: also fit every class again with that mean model, the classes the tracker
         poses the arm with (``pose_classes_``); recognition and synthesis keep ``classes_``. ``None``
         (default): none.
+    pose_hand_modes
+        how many ways of holding the hand (:mod:`~hoap_actions.primitives.models.hand_modes`) the pose classes
+        are also refitted for (``hand_modes_``); 0 (default): none.
     progress
         show a bar over the class fits when stderr is a terminal (not saved with the models).
 
@@ -166,14 +171,17 @@ class ActionModels(ActionDecoding, Estimator):
         dict class id -> :class:`ClassModel` of every class refitted with ``pose_mean_model`` (the same
         segments, states and effects; empty without it; models learned before 2026-12-06's third session
         hold approach and remove only, and the tracker poses the others with ``classes_``).
+    hand_modes_
+        the :class:`~hoap_actions.primitives.models.hand_modes.HandModes` the tracker poses the arm with per way
+        of holding the hand (``None`` without ``pose_hand_modes``, or in models learned before them).
     """
 
     _learned = ("classes_", "grammar_", "discovery_", "fps_", "marker_names_", "covars_prior_", "actions_",
                 "action_lifts_", "action_of_class_", "demonstrators_", "grasp_offset_", "approach_ends_",
-                "pose_classes_")
+                "pose_classes_", "hand_modes_")
     _file_kind = KIND
     _format_version = FORMAT_VERSION
-    _readable_versions = (1, 2, 3, 4, FORMAT_VERSION)
+    _readable_versions = (1, 2, 3, 4, 5, FORMAT_VERSION)
 
     def __init__(
         self,
@@ -194,6 +202,7 @@ class ActionModels(ActionDecoding, Estimator):
         speed_augmentation: tuple[float, ...] = (),
         object_vote: float = 1000.0,
         pose_mean_model: str | None = None,
+        pose_hand_modes: int = 0,
         progress: bool = False,
     ) -> None:
         self.covariance_type = covariance_type
@@ -213,6 +222,7 @@ class ActionModels(ActionDecoding, Estimator):
         self.speed_augmentation = speed_augmentation
         self.object_vote = object_vote
         self.pose_mean_model = pose_mean_model
+        self.pose_hand_modes = pose_hand_modes
         self.progress = progress
 
     def _check_params(self) -> None:
@@ -240,6 +250,9 @@ class ActionModels(ActionDecoding, Estimator):
             raise InvalidInputError(f"pose_mean_model must be None, 'linear' or 'tps'; got {self.pose_mean_model!r}")
         if self.unexplained_penalty is not None:
             number("unexplained_penalty", 0.0)
+        if isinstance(self.pose_hand_modes, bool) or not isinstance(self.pose_hand_modes, (int, np.integer)) \
+                or self.pose_hand_modes < 0:
+            raise InvalidInputError(f"pose_hand_modes must be an int >= 0; got {self.pose_hand_modes!r}")
         for name in ("max_states", "n_restarts", "n_candidates"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -338,7 +351,17 @@ class ActionModels(ActionDecoding, Estimator):
         self.approach_ends_ = None if O is None else fit_approach_ends(
             discovery, hands, np.split(np.asarray(O, dtype=float), np.cumsum(lengths)[:-1]))
         self.pose_classes_ = self._fit_pose_classes(inputs, stretched)
+        self.hand_modes_ = self._fit_hand_modes(hands, inputs, stretched)
         return self
+
+    def _fit_hand_modes(self, hands: list[np.ndarray], inputs: list[np.ndarray],
+                        stretched: dict[float, list[np.ndarray]]) -> HandModes | None:
+        """The ways the demonstrators held the hand and the pose classes refitted per way (``pose_hand_modes``)."""
+        if not self.pose_hand_modes or tuple(self.marker_names_) != MARKER_NAMES:
+            return None
+        refit = self._with_mean_model() if self.pose_mean_model else self
+        return fit_hand_modes(self.discovery_.classes_, self.discovery_.segmentations_, hands,
+                              lambda c: refit._fit_class(c, inputs, stretched, None), self.pose_hand_modes)
 
     def _fit_pose_classes(self, inputs: list[np.ndarray], stretched: dict[float, list[np.ndarray]]
                           ) -> dict[int, ClassModel]:

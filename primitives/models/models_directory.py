@@ -1,9 +1,9 @@
 """The models directory of :class:`~hoap_actions.primitives.models.action_models.ActionModels`: its files
 and the checks every entry of its manifest gets on load (each error names the file and the entry).
 
-Layout (``format_version`` 5; version 1 directories, which have no action level, version 2
-ones, which have no grasp offset, version 3 ones, which have no pose classes, and version 4 ones, which have
-no approach ends, still load):
+Layout (``format_version`` 6; version 1 directories, which have no action level, version 2
+ones, which have no grasp offset, version 3 ones, which have no pose classes, version 4 ones, which have
+no approach ends, and version 5 ones, which have no hand modes, still load):
 ``manifest.json`` (``kind`` "ActionModels", ``format_version``,
 ``params`` the hyper-parameters, ``fps``, ``marker_names``, ``covars_prior`` (D,) or null, and
 ``classes``: per class its ``id``, ``kind``, ``file``, ``effect_centre`` (6,), ``effect_basis``
@@ -11,7 +11,10 @@ no approach ends, still load):
 :mod:`~hoap_actions.primitives.models.whole_actions`, the same with ``lift_m``; optionally ``demonstrators``, the
 profiles of who demonstrated, absent from models learned before it was kept; ``grasp_offset``
 (3,) m or null, the object's centre in the hand's frame, :mod:`~hoap_actions.primitives.models.object_estimate`;
-``approach_ends`` (n, 3) m or null, :mod:`~hoap_actions.primitives.models.approach_ends`),
+``approach_ends`` (n, 3) m or null, :mod:`~hoap_actions.primitives.models.approach_ends`; ``hand_modes``
+null or the ways of holding the hand, :mod:`~hoap_actions.primitives.models.hand_modes`: ``centres`` (K, 6),
+``prior`` (K,) and ``classes``, the pose classes refitted per mode, each with its ``mode`` and file
+``mode_<id>_<mode>.npz``),
 ``discovery.json`` (the fitted
 :class:`~hoap_actions.primitives.discovery.estimator.PrimitiveDiscovery`, which also cuts new object
 trajectories), ``grammar.json`` (the :class:`~hoap_actions.primitives.discovery.grammar.ActionGrammar`) and
@@ -38,12 +41,13 @@ from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.hmm.parametric_hmm import ParametricHMM
 from hoap_actions.primitives.json_files import read_json_model
 from hoap_actions.primitives.models.class_models import EFFECT_DIM, ClassModel
+from hoap_actions.primitives.models.hand_modes import HandModes
 
 __all__ = ["FORMAT_VERSION", "KIND", "MANIFEST", "MODELS_FILES", "check_manifest", "finite_array", "foreign_entries",
            "models_from_directory", "names", "positive", "profiles_entry", "read_manifest", "read_models_directory",
            "unique_profiles", "write_models_directory"]
 
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 KIND = "ActionModels"
 MANIFEST = "manifest.json"
 MODELS_FILES = (MANIFEST, "discovery.json", "grammar.json")
@@ -60,7 +64,7 @@ def foreign_entries(folder: Path) -> list[str]:
         kind = None
     if kind != KIND:
         return entries
-    ours = re.compile(r"^(class|action|pose)_\d+\.npz$")
+    ours = re.compile(r"^((class|action|pose)_\d+|mode_\d+_\d+)\.npz$")
     return [name for name in entries
             if not (name in (*MODELS_FILES, "PROVENANCE.json") or ours.match(name)) or not (folder / name).is_file()]
 
@@ -132,6 +136,7 @@ def write_models_directory(models: Any, folder: Path) -> None:
              "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability}
             for cid, m in models.pose_classes_.items()
         ],
+        "hand_modes": _hand_modes_entry(models.hand_modes_),
     }
     (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
     models.discovery_.save(folder / "discovery.json")
@@ -142,6 +147,17 @@ def write_models_directory(models: Any, folder: Path) -> None:
         model.phmm.save(folder / f"action_{aid}.npz")
     for cid, model in models.pose_classes_.items():
         model.phmm.save(folder / f"pose_{cid}.npz")
+    for (cid, mode), model in ({} if models.hand_modes_ is None else models.hand_modes_.classes).items():
+        model.phmm.save(folder / f"mode_{cid}_{mode}.npz")
+
+
+def _hand_modes_entry(modes: HandModes | None) -> dict | None:
+    if modes is None:
+        return None
+    return {"centres": modes.centres.tolist(), "prior": modes.prior.tolist(), "classes": [
+        {"id": cid, "mode": mode, "kind": m.kind, "file": f"mode_{cid}_{mode}.npz", "effect_centre": m.centre.tolist(),
+         "effect_basis": m.basis.tolist(), "exit_probability": m.exit_probability}
+        for (cid, mode), m in modes.classes.items()]}
 
 def read_models_directory(path: Path) -> tuple[object, object, dict]:
     """The directory's ``kind``, ``format_version`` and manifest (checked further by :func:`models_from_directory`)."""
@@ -204,7 +220,39 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
         )
     models.classes_ = dict(sorted(classes.items()))
     models.pose_classes_ = _pose_classes(directory, manifest, models.classes_, width) if version >= 4 else {}
+    models.hand_modes_ = _hand_modes(directory, manifest, models.classes_, width) if version >= 6 else None
     return models
+
+
+def _hand_modes(directory: Path, manifest: dict, classes: Mapping[int, ClassModel], width: int) -> HandModes | None:
+    """The manifest's hand modes (null: none), each refitted class checked to stand for a class of the same kind
+    and states."""
+    entry = manifest.get("hand_modes")
+    if entry is None:
+        return None
+    where = f"{directory / MANIFEST}: entry hand_modes"
+    if not isinstance(entry, dict) or not isinstance(entry.get("prior"), list) or not isinstance(entry.get("classes"),
+                                                                                                   list):
+        raise DataFileError(f"{where} must be null or hold centres, prior and classes")
+    k = len(entry["prior"])
+    prior = finite_array(directory / MANIFEST, "hand_modes.prior", entry["prior"], (k,))
+    centres = finite_array(directory / MANIFEST, "hand_modes.centres", entry.get("centres"), (k, 6))
+    refitted = {}
+    for item in entry["classes"]:
+        if (not isinstance(item, dict) or not isinstance(item.get("id"), int) or not isinstance(item.get("mode"), int)
+                or item.get("file") != f"mode_{item.get('id')}_{item.get('mode')}.npz"):
+            raise DataFileError(f"{where}: each class must hold an int id and mode and its file mode_<id>_<mode>.npz; "
+                                f"got {item!r}")
+        model = _entry_model(directory, item, "hand_modes.classes", "mode", width)
+        same = classes.get(model.class_id)
+        if same is None or same.kind != model.kind or same.phmm.n_states != model.phmm.n_states:
+            raise DataFileError(f"{where}: class {model.class_id} in mode {item['mode']} must refit a class of the "
+                                f"same kind and states; the classes are {sorted(classes)}")
+        refitted[(model.class_id, item["mode"])] = model
+    try:
+        return HandModes(centres, prior, refitted)
+    except InvalidInputError as exc:
+        raise DataFileError(f"{where}: {exc}") from None
 
 
 def _pose_classes(directory: Path, manifest: dict, classes: Mapping[int, ClassModel], width: int
