@@ -126,8 +126,12 @@ def test_the_tracker_poses_each_particle_with_its_modes_class_and_keeps_modes_th
 
     models, approach = moded
     tracked = TrackingModels.from_action_models(models)
-    camera = _camera()
-    tracker = ActionTracker(tracked, BodyModel(tracked.marker_names, np.zeros(3)), camera, n_particles=2000, random_state=3)
+    other = copy.deepcopy(tracked.classes[approach])
+    other.phmm.n_states += 1
+    with pytest.raises(InvalidInputError, match="must have their class's number of states"):
+        dataclasses.replace(tracked, hand_modes=HandModes(np.eye(2, 6), np.array([0.5, 0.5]), {(approach, 1): other}))
+    body = BodyModel(tracked.marker_names, np.zeros(3))
+    tracker = ActionTracker(tracked, body, _camera(), n_particles=2000, random_state=3)
     assert abs(np.mean(tracker.mode == 1) - 0.5) < 0.05  # drawn from the prior
     tracker.class_id[:] = approach
     tracker.state[:] = 1.0
@@ -147,3 +151,18 @@ def _camera():
     from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA
 
     return DEMONSTRATOR_CAMERA
+
+
+def test_models_learn_hand_modes_with_their_classes_count_of_states(small_demos, small):
+    demos, discovery = small_demos, small[1]
+    lengths = [e.T for e in demos]
+    H = np.concatenate([e.H.reshape(e.T, -1) for e in demos])
+    models = ActionModels(pose_mean_model="tps", smoothing=0.5, pose_hand_modes=2).fit(
+        H, lengths, discovery, demos.fps, demos.marker_names)
+    assert models.hand_modes_.n_modes == 2 and np.isclose(models.hand_modes_.prior.sum(), 1.0)
+    assert models.hand_modes_.classes == {}  # three demonstrations with a manipulation: no mode holds six segments
+    cls = discovery.classes_[0]
+    refit = models._fit_class(cls, [np.hstack([e.H.reshape(e.T, -1), np.zeros((e.T, 18))]) for e in demos], {}, None,
+                              n_states=3)
+    assert refit.phmm.n_states == 3
+    assert ActionModels(pose_hand_modes=0).fit(H, lengths, discovery, demos.fps, demos.marker_names).hand_modes_ is None

@@ -79,6 +79,10 @@ class TrackingModels:
             if strangers:
                 raise InvalidInputError(f"hand modes refit classes {strangers} that have no model (models: "
                                         f"{sorted(self.classes)})")
+            uneven = sorted(key for key, m in self.hand_modes.classes.items()
+                            if m.phmm.n_states != self.classes[key[0]].phmm.n_states)
+            if uneven:
+                raise InvalidInputError(f"hand-mode classes {uneven} must have their class's number of states")
         if self.posture is not None:
             check_is_fitted(self.posture)
             if tuple(self.marker_names) != MARKER_NAMES:

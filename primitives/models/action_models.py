@@ -68,6 +68,7 @@ from hoap_actions.primitives.base import Estimator, check_is_fitted
 from hoap_actions.primitives.discovery.estimator import MANIPULATION, PrimitiveDiscovery
 from hoap_actions.primitives.discovery.grammar import ActionGrammar
 from hoap_actions.primitives.discovery.groups import action_groups
+from hoap_actions.primitives.discovery.primitive_classes import PrimitiveClass
 from hoap_actions.primitives.hmm.parametric_hmm import EXTRAPOLATION_MARGIN, ParametricHMM
 from hoap_actions.primitives.models.approach_ends import fit_approach_ends
 from hoap_actions.primitives.models.class_models import (
@@ -360,8 +361,11 @@ class ActionModels(ActionDecoding, Estimator):
         if not self.pose_hand_modes or tuple(self.marker_names_) != MARKER_NAMES:
             return None
         refit = self._with_mean_model() if self.pose_mean_model else self
-        return fit_hand_modes(self.discovery_.classes_, self.discovery_.segmentations_, hands,
-                              lambda c: refit._fit_class(c, inputs, stretched, None), self.pose_hand_modes)
+        def fit_class(c: PrimitiveClass) -> ClassModel:  # the whole class's count of states: a particle's state indexes
+            return refit._fit_class(c, inputs, stretched, None, self.classes_[int(c.primitive_id)].phmm.n_states)
+
+        return fit_hand_modes(self.discovery_.classes_, self.discovery_.segmentations_, hands, fit_class,
+                              self.pose_hand_modes)
 
     def _fit_pose_classes(self, inputs: list[np.ndarray], stretched: dict[float, list[np.ndarray]]
                           ) -> dict[int, ClassModel]:
@@ -419,17 +423,19 @@ class ActionModels(ActionDecoding, Estimator):
         return actions, lifts, action_of_class
 
     def _fit_class(self, cls, inputs: list[np.ndarray], stretched: dict[float, list[np.ndarray]],
-                   covars_prior: np.ndarray | None) -> ClassModel:
-        """The class's PHMM from its segments of ``inputs`` and of each time-stretched copy in ``stretched``."""
+                   covars_prior: np.ndarray | None, n_states: int | None = None) -> ClassModel:
+        """The class's PHMM from its segments of ``inputs`` and of each time-stretched copy in ``stretched``
+        (``n_states``: that many states, else as many as its segments allow)."""
         movements = [inputs[s.demo][s.start:s.end] for s in cls.segments]
         copies = [stretched[f][s.demo][round(s.start * f):round(s.end * f)]
                   for f in self.speed_augmentation for s in cls.segments]
         phis = np.tile(cls.phis, (1 + len(self.speed_augmentation), 1))
         return self._fit_model(int(cls.primitive_id), str(cls.kind), movements + copies, phis, covars_prior,
-                               n_original=len(movements))
+                               n_original=len(movements), n_states=n_states)
 
     def _fit_model(self, model_id: int, kind: str, movements: list[np.ndarray], phis: np.ndarray,
-                   covars_prior: np.ndarray | None, n_original: int | None = None) -> ClassModel:
+                   covars_prior: np.ndarray | None, n_original: int | None = None,
+                   n_states: int | None = None) -> ClassModel:
         """A left-right PHMM on ``movements`` with their effects ``phis`` (n, 6), reduced to the
         directions they vary in (module docstring); its states are counted on the first ``n_original``
         movements (the rest are time-stretched copies)."""
@@ -441,7 +447,7 @@ class ActionModels(ActionDecoding, Estimator):
         basis = vt[:rank].T
         lengths = np.array([len(m) for m in movements])
         shortest = lengths[:n_original].min()
-        n_states = max(1, int(min(self.max_states, self.state_fraction * shortest)))
+        n_states = n_states or max(1, int(min(self.max_states, self.state_fraction * shortest)))
         keep = lengths >= n_states  # a stretched copy too short for the chain is left out
         movements, phis, lengths = [m for m, k in zip(movements, keep) if k], phis[keep], lengths[keep]
         phmm = ParametricHMM(
