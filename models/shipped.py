@@ -1,7 +1,7 @@
 """The action models shipped in the package: where they are, how they were made, how to make them again.
 
-``paper``: learned (``hoap-actions learn`` defaults, plus the pose classes and hand modes the tracker poses
-the arm with: :data:`LEARN_PARAMS`) from the ``paper`` preset recorded with the seeds in
+``paper``: learned (``hoap-actions learn`` defaults, plus the pose classes the tracker poses approach and
+remove with: :data:`LEARN_PARAMS`) from the ``paper`` preset recorded with the seeds in
 :data:`TRAINING_SEEDS`. Rebuild from scratch (records what is missing under ``--data``)::
 
     python -m hoap_actions.models.shipped --data data --out models/paper --overwrite
@@ -29,10 +29,9 @@ __all__ = ["LEARN_PARAMS", "PROVENANCE", "TRAINING_PRESET", "TRAINING_SEEDS", "b
 
 TRAINING_PRESET = "paper"
 TRAINING_SEEDS = tuple(range(10))  # never 101-103, the held-out recordings of benchmarks/phmm_recognition.py
-LEARN_PARAMS = {"pose_mean_model": "tps", "smoothing": 0.1, "pose_hand_modes": 4}
-"""Beyond ``learn``'s defaults: every class refitted with a thin-plate mean for the tracker (its smoothing chosen
-on the tracker's validation recording), and again per way of holding the hand (four hand modes);
-``docs/experiments/tracking.md``."""
+LEARN_PARAMS = {"pose_mean_model": "tps", "smoothing": 0.1}
+"""Beyond ``learn``'s defaults: approach and remove refitted with a thin-plate mean for the tracker (its
+smoothing chosen on the tracker's validation recording; ``docs/experiments/tracking.md``)."""
 PROVENANCE = "PROVENANCE.json"
 
 
