@@ -22,7 +22,7 @@ from importlib.resources import files
 from pathlib import Path
 
 from hoap_actions import __version__
-from hoap_actions.errors import DataFileError
+from hoap_actions.errors import DataFileError, HoapActionsError
 
 __all__ = ["LEARN_PARAMS", "PROVENANCE", "TRAINING_PRESET", "TRAINING_SEEDS", "build_default_models",
            "default_models_path", "load_default_models"]
@@ -58,13 +58,18 @@ def sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def build_default_models(out: str | os.PathLike, data: str | os.PathLike, overwrite: bool = False) -> Path:
+def build_default_models(out: str | os.PathLike, data: str | os.PathLike, overwrite: bool = False,
+                         pose_hand_modes: int = 0) -> Path:
     """Record the training recordings missing under ``data``, learn the models, write them and their
-    provenance to ``out`` (claimed before anything is recorded)."""
+    provenance to ``out`` (claimed before anything is recorded). ``pose_hand_modes``: also learn that many hand
+    modes (not in the shipped models: ``docs/experiments/tracking.md``, "The ways the hand is held")."""
     from hoap_actions.demonstration.recording import record
     from hoap_actions.outputs import claimed_directory
+    from hoap_actions.primitives.models.action_models import ActionModels
     from hoap_actions.primitives.pipelines.learn import learn
 
+    params = {**LEARN_PARAMS, **({"pose_hand_modes": pose_hand_modes} if pose_hand_modes else {})}
+    ActionModels(**params)._check_params()  # a wrong count fails now, not after the recordings
     out = Path(out)
     with claimed_directory(out, overwrite, what="default models") as staging:
         recordings = []
@@ -73,12 +78,12 @@ def build_default_models(out: str | os.PathLike, data: str | os.PathLike, overwr
             if not path.exists():
                 record(TRAINING_PRESET, path, seed=seed)
             recordings.append(path)
-        models, summary = learn(recordings, progress=True, **LEARN_PARAMS)
+        models, summary = learn(recordings, progress=True, **params)
         models.write_files(staging)
         provenance = {
             "preset": TRAINING_PRESET,
             "seeds": list(TRAINING_SEEDS),
-            "learn_params": LEARN_PARAMS,
+            "learn_params": params,
             "hoap_actions_version": __version__,
             "command": "python -m hoap_actions.models.shipped --data DATA --out OUT",
             "recordings_sha256": {p.name: sha256(p) for p in recordings},
@@ -95,8 +100,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=Path("data"), help="where the training recordings are (or go)")
     parser.add_argument("--out", type=Path, required=True, help="models directory to write (e.g. models/paper)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing directory at --out")
+    parser.add_argument("--pose-hand-modes", type=int, default=0,
+                        help="also learn this many hand modes for the tracker (0, as shipped: none)")
     args = parser.parse_args(argv)
-    print(f"wrote {build_default_models(args.out, args.data, args.overwrite)}")
+    try:
+        print(f"wrote {build_default_models(args.out, args.data, args.overwrite, args.pose_hand_modes)}")
+    except HoapActionsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -18,6 +18,7 @@ from hoap_actions.models.shipped import (
     load_default_models,
     sha256,
 )
+from hoap_actions.models.shipped import main as build_main
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
 from hoap_actions.primitives.models.action_models import ActionModels
 
@@ -83,3 +84,10 @@ def test_the_shipped_models_pose_every_class_with_thin_plate_classes():
     assert sorted(models.pose_classes_) == sorted(models.classes_)
     for cid, pose in models.pose_classes_.items():
         assert pose.phmm.mean_model == "tps" and models.classes_[cid].phmm.mean_model == "linear"
+
+
+def test_the_build_command_refuses_a_wrong_hand_mode_count_before_recording_anything(tmp_path, capsys):
+    args = ["--data", str(tmp_path / "data"), "--out", str(tmp_path / "models"), "--pose-hand-modes", "-1"]
+    assert build_main(args) == 2
+    assert capsys.readouterr().err.strip() == "error: pose_hand_modes must be an int >= 0; got -1"
+    assert not (tmp_path / "data").exists() and not (tmp_path / "models").exists()

@@ -14,8 +14,9 @@ import pytest
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import DataFileError, InvalidInputError
 from hoap_actions.primitives.discovery.primitive_classes import PrimitiveClass, Segment
+from hoap_actions.primitives.hmm.posture import hand_inputs
 from hoap_actions.primitives.models.action_models import ActionModels
-from hoap_actions.primitives.models.hand_modes import HandModes, fit_hand_modes, hand_pointing
+from hoap_actions.primitives.models.hand_modes import HandModes, fit_hand_modes
 from hoap_actions.primitives.models.models_directory import MANIFEST
 
 
@@ -28,8 +29,8 @@ def frame(knuckle_dir: np.ndarray, thumb_dir: np.ndarray, wrist=(0.3, -0.1, 0.1)
     return markers.ravel()
 
 
-def test_hand_pointing_is_the_unit_vectors_from_the_wrist():
-    pointing = hand_pointing(frame(np.array([0.0, 1.0, 0.0]), np.array([0.6, 0.0, 0.8]))[None])
+def test_the_modes_pointing_is_the_unit_vectors_from_the_wrist():
+    pointing = hand_inputs(frame(np.array([0.0, 1.0, 0.0]), np.array([0.6, 0.0, 0.8]))[None])[:, 3:]
     np.testing.assert_allclose(pointing, [[0.0, 1.0, 0.0, 0.6, 0.0, 0.8]], atol=1e-12)
 
 

@@ -18,24 +18,24 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.cluster.vq import kmeans2
 
-from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import MANIPULATION
 from hoap_actions.primitives.discovery.primitive_classes import PrimitiveClass
+from hoap_actions.primitives.hmm.posture import hand_inputs
 from hoap_actions.primitives.models.class_models import ClassModel
 
-__all__ = ["HAND_MODES", "MIN_MODE_SEGMENTS", "HandModes", "fit_hand_modes", "hand_pointing"]
+__all__ = ["HAND_MODES", "MIN_MODE_SEGMENTS", "HandModes", "fit_hand_modes"]
 
 HAND_MODES = 4  # side pushes and carries (two thumb postures), front pushes with the fingers left or right
 MIN_MODE_SEGMENTS = 6  # a class is refitted for a mode with at least this many of its segments in it
-WRIST, KNUCKLE, THUMB = (MARKER_NAMES.index(name) for name in ("wrist", "index_knuckle", "thumb_tip"))
 
 
 @dataclass(frozen=True, eq=False)
 class HandModes:
-    """The modes' ``centres`` ``(K, 6)`` (the hand's pointing, :func:`hand_pointing`), their ``prior`` ``(K,)``
-    (the share of training demonstrations in each) and the ``classes`` refitted per mode, ``{(class id, mode):
-    ClassModel}`` (a class missing for a mode is posed by its model over every mode)."""
+    """The modes' ``centres`` ``(K, 6)`` (the hand's pointing: the unit vectors from the wrist to the index knuckle
+    and to the thumb tip, :func:`~hoap_actions.primitives.hmm.posture.hand_inputs`' last six columns), their
+    ``prior`` ``(K,)`` (the share of training demonstrations in each) and the ``classes`` refitted per mode,
+    ``{(class id, mode): ClassModel}`` (a class missing for a mode is posed by its model over every mode)."""
 
     centres: np.ndarray
     prior: np.ndarray
@@ -57,14 +57,6 @@ class HandModes:
         return len(self.prior)
 
 
-def hand_pointing(markers: np.ndarray) -> np.ndarray:
-    """``(n, 6)``: the unit vectors from the wrist to the index knuckle and to the thumb tip of marker frames
-    ``(n, 18)`` in the recordings' order (:data:`~hoap_actions.demonstration.tasks.MARKER_NAMES`)."""
-    m = np.asarray(markers, dtype=float).reshape(len(markers), -1, 3)
-    pointing = [m[:, k] - m[:, WRIST] for k in (KNUCKLE, THUMB)]
-    return np.hstack([p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-9) for p in pointing])
-
-
 def fit_hand_modes(classes: Sequence[PrimitiveClass], segmentations: Sequence[Sequence[tuple]],
                    hands: Sequence[np.ndarray], fit_class: Callable[[PrimitiveClass], ClassModel],
                    n_modes: int = HAND_MODES, min_segments: int = MIN_MODE_SEGMENTS) -> HandModes | None:
@@ -78,7 +70,7 @@ def fit_hand_modes(classes: Sequence[PrimitiveClass], segmentations: Sequence[Se
     demos = [d for d, frame in first.items() if frame is not None]
     if len(demos) < n_modes:
         return None
-    pointing = hand_pointing(np.array([hands[d][first[d]] for d in demos]))
+    pointing = hand_inputs(np.array([hands[d][first[d]] for d in demos]))[:, 3:]  # the wrist's position left out
     centres, labels = kmeans2(pointing, n_modes, minit="++", seed=np.random.default_rng(0))
     mode_of = dict(zip(demos, labels.tolist()))
     refitted = {}
