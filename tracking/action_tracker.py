@@ -21,7 +21,8 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
   hand's end becomes the object's start at the height the two classes' training effects differ by.
 * The end moves by Brownian diffusion that cools as ``s`` advances (early frames say little about
   where the hand is going), inside the range of its class's training ends widened by 5 cm; an approach's
-  end drawn at the seen block from the training ends (below) moves by a millimetre a frame at most.
+  end drawn at the seen block from the training ends (below) moves by a millimetre a frame at most. The hand's
+  end is held where the model posing the particle sees it (:mod:`~hoap_actions.tracking.effect_bounds`).
 * A small share of particles (``REDRAW_SHARE`` per frame) draws its end afresh from its class's
   training effects: the early frames of a reach say little about its goal, and once the particles
   have agreed on a wrong one, diffusion alone cannot carry them across the table to the right one.
@@ -63,6 +64,7 @@ import numpy as np
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.action_models import ActionModels
+from hoap_actions.tracking.effect_bounds import EndHold, end_boxes, hand_offset_from_object
 from hoap_actions.tracking.image_evidence import depths_or_holes, image_log_likelihoods, per_camera, within_unit_range
 from hoap_actions.tracking.object_evidence import OBJECT_MOVING_M, OBJECT_STILL_M, ObjectEvidence
 from hoap_actions.tracking.poses import mean_poses
@@ -101,7 +103,6 @@ APPROACH_END_JITTER_M = 0.005
 # m per frame, the end's step of an approach whose goals are drawn at the seen block from the training ends: they
 # are drawn within millimetres of a task's place, and a wider walk takes them off it (validation: 0.005 / 0.001)
 APPROACH_AT_BLOCK_DIFFUSION_M = 0.001
-END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 SILHOUETTE_SIGMA = 0.6  # sigma of the silhouette term (units of the shares off / uncovered; validation recording)
 # sigma of the depth term (m of truncated depth misfit) by what it weighs (validation recordings): in the filter, broad
 # enough for the class posterior; on the pose estimate alone, sharper (0.005-0.02 tried)
@@ -272,11 +273,10 @@ class ActionTracker:
         elif self._approach_ends is not None:
             self.hand_from_object = np.asarray(self._approach_ends, float).mean(axis=0)
         else:
-            self.hand_from_object = self._hand_offset_from_object()
-        self._end_box = {}
-        for cid, model in models.classes.items():
-            ends = (model.centre + np.einsum("np,kp->nk", model.phmm.train_phi_, model.basis))[:, 3:]
-            self._end_box[cid] = (ends.min(axis=0) - END_MARGIN_M, ends.max(axis=0) + END_MARGIN_M)
+            self.hand_from_object = hand_offset_from_object(self.models.classes)
+        self._end_box = end_boxes(models.classes)
+        self._end_hold = EndHold(models.classes, {} if models.hand_modes is None else models.hand_modes.classes,
+                                 self._n_modes)
         self.reset()
 
     # ----------------------------------------------------------------------------- set-up
@@ -287,20 +287,6 @@ class ActionTracker:
         targets = np.array([*symbols, EXIT])
         table = {int(s): grammar.transmat_[k + 1, 1:] for k, s in enumerate(symbols)}
         return targets, grammar.transmat_[0, 1:], table
-
-    def _hand_offset_from_object(self) -> np.ndarray:
-        """Where an approach's end (the hand) lies from the object it reaches, learned from the training
-        effects: the approaches' mean end minus the manipulations' mean start (weighted by their counts) in
-        x and y; the approaches' mean end height in z."""
-        classes = self.models.classes.values()
-        approach = [c.centre[3:] for c in classes if c.kind == APPROACH]
-        starts = [(len(c.phmm.train_phi_), c.centre[:3]) for c in classes if c.kind == MANIPULATION]
-        if not approach or not starts:
-            return np.zeros(3)
-        counts = np.array([n for n, _ in starts], float)
-        object_start = np.sum(counts[:, None] * np.array([x for _, x in starts]), axis=0) / counts.sum()
-        hand = np.mean(approach, axis=0)
-        return np.array([*(hand[:2] - object_start[:2]), hand[2]])
 
     def reset(self) -> None:
         """Start a new track: particles drawn from the prior (:meth:`_draw_prior`), no frame seen."""
@@ -489,6 +475,7 @@ class ActionTracker:
             successors.append(self._rng.choice(targets, size=ending.size, p=table[cid] / table[cid].sum()))
         if leaving:  # after every class has moved: a particle that changes class moves once per frame
             self._switch(np.concatenate(leaving), np.concatenate(successors))
+        self._end_hold.hold(self.class_id, self.mode, self.end)
 
     def _end_at_object(self, n: int) -> np.ndarray:
         """``n`` approach ends drawn around the hand's learned places at the seen block: training approaches'
