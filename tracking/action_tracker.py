@@ -21,7 +21,7 @@ Propagation (the paper's "Action Tracking: PHMM-Based"):
   hand's end becomes the object's start at the height the two classes' training effects differ by.
 * The end moves by Brownian diffusion that cools as ``s`` advances (early frames say little about
   where the hand is going), inside the range of its class's training ends widened by 5 cm; an approach's
-  end drawn at the seen block from the training ends (below) moves by a millimetre a frame at most. The hand's
+  end drawn at the seen block from the training ends (below) moves by a millimetre a frame at most. An approach's
   end is held where the model posing the particle sees it (:mod:`~hoap_actions.tracking.effect_bounds`).
 * A small share of particles (``REDRAW_SHARE`` per frame) draws its end afresh from its class's
   training effects: the early frames of a reach say little about its goal, and once the particles

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION, REMOVE
+from hoap_actions.primitives.discovery.estimator import APPROACH, MANIPULATION
 from hoap_actions.primitives.models.class_models import ClassModel
 
 __all__ = ["END_MARGIN_M", "IGNORED_END_WEIGHT", "EndHold", "end_boxes", "hand_offset_from_object"]
@@ -23,9 +23,8 @@ __all__ = ["END_MARGIN_M", "IGNORED_END_WEIGHT", "EndHold", "end_boxes", "hand_o
 END_MARGIN_M = 0.05  # m, how far beyond its class's training ends an end may wander (the table's reach)
 # an end direction counts as ignored by a model when a move along it changes the model's reduced effect by less than
 # this share of the move (the end part of the model's orthonormal effect basis: 1 when the model varies the end there,
-# 0.003-0.034 for the removes' rest, 0 for a height a mode's approaches all reach)
+# 0 for a height a mode's approaches all reach; the removes' rest, not held, has 0.003-0.034)
 IGNORED_END_WEIGHT = 0.1
-HAND_EFFECTS = (APPROACH, REMOVE)  # classes whose effect is the hand's start and end (a manipulation's is the object's)
 
 
 def end_boxes(classes: Mapping[int, ClassModel], margin_m: float = END_MARGIN_M) -> dict[int, tuple]:
@@ -63,14 +62,15 @@ def _ignored_directions(model: ClassModel) -> np.ndarray | None:
 
 
 class EndHold:
-    """The hand's end of approach and remove particles held at their posing model's centre along the directions
-    that model ignores (see the module docstring); classes whose models ignore none are left as they are."""
+    """The end of approach particles (the hand's goal) held at their posing model's centre along the directions that
+    model ignores (see the module docstring); approaches whose models ignore none are left as they are. A remove's
+    end (the hand at rest) and a manipulation's (the object's, which the next manipulation starts from) are not."""
 
     def __init__(self, classes: Mapping[int, ClassModel], by_mode: Mapping[tuple[int, int], ClassModel],
                  n_modes: int) -> None:
         self._held: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         for cid, pooled in classes.items():
-            if pooled.kind not in HAND_EFFECTS:
+            if pooled.kind != APPROACH:
                 continue
             for mode in range(n_modes):
                 model = by_mode.get((cid, mode), pooled)
