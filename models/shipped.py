@@ -1,8 +1,8 @@
 """The action models shipped in the package: where they are, how they were made, how to make them again.
 
 ``paper``: learned (``hoap-actions learn`` defaults, plus the pose classes the tracker poses approach and
-remove with: :data:`LEARN_PARAMS`) from the ``paper`` preset recorded with the seeds in
-:data:`TRAINING_SEEDS`. Rebuild from scratch (records what is missing under ``--data``)::
+remove with and the hand modes it poses the arm by: :data:`LEARN_PARAMS`) from the ``paper`` preset recorded
+with the seeds in :data:`TRAINING_SEEDS`. Rebuild from scratch (records what is missing under ``--data``)::
 
     python -m hoap_actions.models.shipped --data data --out models/paper --overwrite
 
@@ -29,9 +29,10 @@ __all__ = ["LEARN_PARAMS", "PROVENANCE", "TRAINING_PRESET", "TRAINING_SEEDS", "b
 
 TRAINING_PRESET = "paper"
 TRAINING_SEEDS = tuple(range(10))  # never 101-103, the held-out recordings of benchmarks/phmm_recognition.py
-LEARN_PARAMS = {"pose_mean_model": "tps", "smoothing": 0.1}
+LEARN_PARAMS = {"pose_mean_model": "tps", "smoothing": 0.1, "pose_hand_modes": 4}
 """Beyond ``learn``'s defaults: approach and remove refitted with a thin-plate mean for the tracker (its
-smoothing chosen on the tracker's validation recording; ``docs/experiments/tracking.md``)."""
+smoothing chosen on the tracker's validation recording), and every pose class refitted per way of holding the
+hand (four modes; ``docs/experiments/tracking.md``)."""
 PROVENANCE = "PROVENANCE.json"
 
 
@@ -59,16 +60,16 @@ def sha256(path: Path) -> str:
 
 
 def build_default_models(out: str | os.PathLike, data: str | os.PathLike, overwrite: bool = False,
-                         pose_hand_modes: int = 0) -> Path:
+                         pose_hand_modes: int | None = None) -> Path:
     """Record the training recordings missing under ``data``, learn the models, write them and their
-    provenance to ``out`` (claimed before anything is recorded). ``pose_hand_modes``: also learn that many hand
-    modes (not in the shipped models: ``docs/experiments/tracking.md``, "The ways the hand is held")."""
+    provenance to ``out`` (claimed before anything is recorded). ``pose_hand_modes``: how many hand modes to
+    learn (None: as shipped, :data:`LEARN_PARAMS`; 0: none, the models before them)."""
     from hoap_actions.demonstration.recording import record
     from hoap_actions.outputs import claimed_directory
     from hoap_actions.primitives.models.action_models import ActionModels
     from hoap_actions.primitives.pipelines.learn import learn
 
-    params = {**LEARN_PARAMS, **({"pose_hand_modes": pose_hand_modes} if pose_hand_modes else {})}
+    params = {**LEARN_PARAMS, **({} if pose_hand_modes is None else {"pose_hand_modes": pose_hand_modes})}
     ActionModels(**params)._check_params()  # a wrong count fails now, not after the recordings
     out = Path(out)
     with claimed_directory(out, overwrite, what="default models") as staging:
@@ -100,8 +101,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=Path("data"), help="where the training recordings are (or go)")
     parser.add_argument("--out", type=Path, required=True, help="models directory to write (e.g. models/paper)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing directory at --out")
-    parser.add_argument("--pose-hand-modes", type=int, default=0,
-                        help="also learn this many hand modes for the tracker (0, as shipped: none)")
+    parser.add_argument("--pose-hand-modes", type=int, default=None,
+                        help=f"how many hand modes to learn for the tracker (default, as shipped: "
+                             f"{LEARN_PARAMS['pose_hand_modes']}; 0: none)")
     args = parser.parse_args(argv)
     try:
         print(f"wrote {build_default_models(args.out, args.data, args.overwrite, args.pose_hand_modes)}")

@@ -10,6 +10,7 @@ import pytest
 import hoap_actions
 from hoap_actions.apps.cli import main
 from hoap_actions.models.shipped import (
+    LEARN_PARAMS,
     PROVENANCE,
     TRAINING_PRESET,
     TRAINING_SEEDS,
@@ -44,8 +45,8 @@ def test_shipped_models_load_and_are_small():
     models = load_default_models()
     assert len(models.classes_) == json.loads((default_models_path() / PROVENANCE).read_text())["classes"]
     # bytes in the wheel: 6 MB of recognition models and discovery, 15 MB of the tracker's thin-plate pose classes
-    # (40 kernel weights per state and marker coordinate, for every class)
-    assert sum(p.stat().st_size for p in default_models_path().iterdir()) < 24e6
+    # (40 kernel weights per state and marker coordinate, for every class), 16 MB of their refits per hand mode
+    assert sum(p.stat().st_size for p in default_models_path().iterdir()) < 40e6
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +78,11 @@ def test_the_build_command_remakes_the_shipped_models(tmp_path):
     for cid in a.pose_classes_:
         np.testing.assert_allclose(a.pose_classes_[cid].phmm.mean_bar_, b.pose_classes_[cid].phmm.mean_bar_, rtol=1e-6,
                                    atol=1e-9)
+    np.testing.assert_allclose(a.hand_modes_.centres, b.hand_modes_.centres, atol=1e-9)
+    assert sorted(a.hand_modes_.classes) == sorted(b.hand_modes_.classes)
+    for key, refit in a.hand_modes_.classes.items():
+        np.testing.assert_allclose(refit.phmm.mean_bar_, b.hand_modes_.classes[key].phmm.mean_bar_, rtol=1e-6,
+                                   atol=1e-9)
 
 
 def test_the_shipped_models_pose_every_class_with_thin_plate_classes():
@@ -84,6 +90,25 @@ def test_the_shipped_models_pose_every_class_with_thin_plate_classes():
     assert sorted(models.pose_classes_) == sorted(models.classes_)
     for cid, pose in models.pose_classes_.items():
         assert pose.phmm.mean_model == "tps" and models.classes_[cid].phmm.mean_model == "linear"
+
+
+def test_the_shipped_models_pose_the_arm_per_way_of_holding_the_hand():
+    """Four hand modes, each refit a thin-plate pose class of its class's kind and chain; the tracker holds the
+    ends of the approaches whose refits leave a direction of the end out."""
+    from hoap_actions.tracking.effect_bounds import EndHold
+
+    models = load_default_models()
+    modes = models.hand_modes_
+    assert modes.n_modes == LEARN_PARAMS["pose_hand_modes"] == 4
+    np.testing.assert_allclose(modes.prior.sum(), 1.0)
+    approach = next(cid for cid, c in models.classes_.items() if c.kind == "approach")
+    assert {(approach, m) for m in range(4)} <= set(modes.classes)  # the approach refitted for every mode
+    for (cid, _), refit in modes.classes.items():
+        pose = models.pose_classes_[cid]
+        assert refit.kind == pose.kind and refit.phmm.n_states == pose.phmm.n_states
+        assert refit.phmm.mean_model == "tps"
+    held = EndHold(models.pose_classes_, modes.classes, 4)._held
+    assert held and all(cid == approach for cid, _ in held)
 
 
 def test_the_build_command_refuses_a_wrong_hand_mode_count_before_recording_anything(tmp_path, capsys):

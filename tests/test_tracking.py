@@ -106,10 +106,11 @@ def models():
 
 @pytest.fixture(scope="module")
 def reach(models):
-    """A reach towards the table's centre as the tracker poses it: synthesised by the shipped approach's pose
-    class (its thin-plate refit, which the tracker poses approach with): (T, 6, 3)."""
+    """A reach towards the table's centre as the tracker poses it: synthesised by the shipped approach's thin-plate
+    refit for the most frequent way of holding the hand (its hand mode), which the tracker poses most approaches
+    with: (T, 6, 3)."""
     approach = next(cid for cid, c in models.classes_.items() if c.kind == "approach")
-    model = models.pose_classes_[approach]
+    model = models.hand_modes_.classes[(approach, int(np.argmax(models.hand_modes_.prior)))]
     with np.errstate(all="ignore"):
         phi = model.centre.copy()
         phi[3:5] += [0.05, -0.04]
