@@ -27,13 +27,14 @@ from __future__ import annotations
 import json
 import os
 import re
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hoap_actions.errors import DataFileError, InvalidInputError
+from hoap_actions.errors import DataFileError, InvalidInputError, MissingModelPartWarning
 from hoap_actions.inputs import checked_folder_member
 from hoap_actions.primitives.base import file_params
 from hoap_actions.primitives.discovery.estimator import PrimitiveDiscovery
@@ -221,6 +222,11 @@ def models_from_directory(cls: type, path: Path, manifest: dict, version: int) -
     models.classes_ = dict(sorted(classes.items()))
     models.pose_classes_ = _pose_classes(directory, manifest, models.classes_, width) if version >= 4 else {}
     models.hand_modes_ = _hand_modes(directory, manifest, models.classes_, width) if version >= 6 else None
+    if version < 6:
+        warnings.warn(f"{manifest_path}: written before hand modes (format {version}): the models recognise and act as "
+                      "before, and the tracker poses each class by one mean over every way of holding the hand; learn "
+                      "them again (pose_hand_modes=4, as the shipped models) for the tracker's figures",
+                      MissingModelPartWarning, stacklevel=4)
     return models
 
 
