@@ -107,7 +107,7 @@ def test_the_shipped_models_pose_the_arm_per_way_of_holding_the_hand():
         pose = models.pose_classes_[cid]
         assert refit.kind == pose.kind and refit.phmm.n_states == pose.phmm.n_states
         assert refit.phmm.mean_model == "tps"
-    held = EndHold(models.pose_classes_, modes.classes, 4)._held
+    held = EndHold(models.pose_classes_, modes.classes, 4).held
     assert held and all(cid == approach for cid, _ in held)
 
 

@@ -78,6 +78,11 @@ class EndHold:
                 if projector is not None:
                     self._held[(cid, mode)] = (model.centre[3:], projector)
 
+    @property
+    def held(self) -> list[tuple[int, int]]:
+        """The (class id, mode) pairs whose ends are held."""
+        return sorted(self._held)
+
     def hold(self, class_id: np.ndarray, mode: np.ndarray, end: np.ndarray) -> None:
         """Move ``end`` (n, 3), in place, onto each particle's posing model's centre along the ignored directions."""
         for (cid, m), (centre, projector) in self._held.items():
