@@ -582,3 +582,29 @@ def test_with_far_leaps_a_share_of_particles_leaps_anywhere_in_the_rest_of_its_c
     for wrong in (-0.1, 1.5, True, "0.1"):
         with pytest.raises(InvalidInputError, match="far_leap_share"):
             ActionTracker(models, body, CAMERA, far_leap_share=wrong)
+
+
+def test_a_block_hidden_in_part_from_the_start_draws_the_goals_until_it_is_seen_whole(models, reach):
+    """A block that something in front of the camera hides in part from the first frame (every sighting partial)
+    still draws the reach's goal towards it: the end is nearer the truth than with no sighting, for each of three
+    seeds. Partial sightings stand in only until a first whole one: after it they leave the goals' block where it
+    was seen whole (a hand over the block hides it)."""
+    approach, phi, movement = reach
+    body = BodyModel(models.marker_names_, TORSO_BASE)
+    edges = list(images(body, movement))
+    for seed in range(3):
+        errors = []
+        for sighting in (None, "partial"):
+            tracker = ActionTracker(models, body, CAMERA, n_particles=200, random_state=seed)
+            block = np.r_[phi[3:5] - tracker.hand_from_object[:2], 0.025]
+            frames = [tracker.step(G, object_position=None if sighting is None else block, object_whole=False)
+                      for G in edges]
+            errors.append(np.linalg.norm(frames[-1].end_mean[:2] - phi[3:5]))
+        assert errors[1] < errors[0]
+    tracker = ActionTracker(models, body, CAMERA, n_particles=50, random_state=0)
+    partly, whole, later = (np.array([x, 0.1, 0.025]) for x in (0.10, 0.12, 0.15))
+    tracker.step(edges[0], object_position=partly, object_whole=False)
+    np.testing.assert_array_equal(tracker.object_seen, partly)
+    tracker.step(edges[1], object_position=whole, object_whole=True)
+    tracker.step(edges[2], object_position=later, object_whole=False)
+    np.testing.assert_array_equal(tracker.object_seen, whole)

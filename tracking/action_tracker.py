@@ -292,13 +292,15 @@ class ActionTracker:
         """Start a new track: particles drawn from the prior (:meth:`_draw_prior`), no frame seen."""
         self._lineage = None if self.lag is None else ParticleLineage(self.lag)
         self._object = None
+        self._seen_whole = False
         self._smoothed: list[SmoothedFrame] = []
         self._frames_seen = 0
         self._draw_prior()
 
     @property
     def object_seen(self) -> np.ndarray | None:
-        """Where the object was last seen whole (3,) (m), None before any sighting."""
+        """Where the object was last seen whole (3,) (m; partly hidden until a first whole sighting), None before any
+        sighting."""
         return None if self._object is None else self._object.copy()
 
     def smoothed_frames(self, final: bool = False) -> list[SmoothedFrame]:
@@ -390,14 +392,16 @@ class ActionTracker:
     def _see_object(self, object_position: np.ndarray | None, whole: bool = True) -> None:
         """Check where the object is seen this frame (None: not seen) and remember it: its motion evidence takes
         this frame's sighting, the goals drawn at it the last whole one (a block under the hand is where it was
-        last seen whole)."""
+        last seen whole); until a first whole sighting, the partial ones (a block that something in front of the
+        camera hides from the start is nearer its partial sighting than the prior's goals)."""
         if object_position is not None:
             object_position = np.asarray(object_position, dtype=float)
             if object_position.shape != (3,) or not np.all(np.isfinite(object_position)):
                 raise InvalidInputError(f"object_position must be a finite (3,) position in m or None; "
                                         f"got {object_position!r}")
-            if whole:
+            if whole or not self._seen_whole:
                 self._object = object_position
+            self._seen_whole |= whole
         self._evidence.see(object_position)
 
     def _weigh(self, markers: np.ndarray, likelihood: np.ndarray, pose_evidence: np.ndarray | None = None
