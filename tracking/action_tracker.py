@@ -358,7 +358,7 @@ class ActionTracker:
         image(s) (m along each camera's view axis, NaN where not measured), resample.
         ``object_position`` (3,), m: the block where the camera sees it this frame (None: not seen);
         ``object_whole`` False: it is partly hidden (a hand over it), its sighting evidence of motion only, goals
-        still drawn where it was last seen whole."""
+        still drawn where it was last seen whole (before any whole sighting, where the partial ones place it)."""
         images = per_camera(edges, self.cameras, "edge image", within_unit_range)
         masks = None if foreground is None else per_camera(foreground, self.cameras, "foreground mask",
                                                            within_unit_range)

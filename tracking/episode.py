@@ -76,7 +76,7 @@ class TrackResult:
     kinds: dict[int, str] = field(default_factory=dict)  # class id -> approach / manipulation / remove
     lag: int = 0                        # frames of fixed-lag smoothing behind ``smoothed``
     smoothed: list[SmoothedFrame] = field(default_factory=list)  # one per frame when lag > 0
-    objects_seen: list[np.ndarray | None] = field(default_factory=list)  # per frame, the block last seen whole
+    objects_seen: list[np.ndarray | None] = field(default_factory=list)  # per frame, the tracker's object_seen
     approach_places: dict[int, np.ndarray] = field(default_factory=dict)  # training approach ends by what followed
     chains: list[ManipulationChain] = field(default_factory=list)  # the training manipulations' chains of classes
     action_of_class: dict[int, int] = field(default_factory=dict)  # class id -> action id
