@@ -206,14 +206,14 @@ def _track(args: argparse.Namespace) -> int:
     from hoap_actions.vision.depth_sensor import DepthSensor
 
     if args.from_markers and (args.video or args.clutter or args.side_camera or args.edges_only or args.noise
-                              or args.depth):
+                              or args.depth or args.refine):
         raise InvalidInputError("--from-markers tracks without images; leave out --video, --clutter, --side-camera, "
-                                "--edges-only, --noise and --depth")
+                                "--edges-only, --noise, --depth and --refine")
     if args.grid_model and (args.models or args.posture or args.from_markers or args.side_camera or args.clutter
-                            or args.noise or args.depth or args.lag):
+                            or args.noise or args.depth or args.lag or args.refine):
         raise InvalidInputError("--grid-model trains its own approach model on the recording's 3 x 3 grid and tracks "
                                 "its one camera; leave out --models, --posture, --from-markers, --side-camera, "
-                                "--clutter, --noise, --depth and --lag")
+                                "--clutter, --noise, --depth, --lag and --refine")
     if not 0 <= args.lag <= MAX_LAG:
         raise InvalidInputError(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
     args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "turned" if args.from_markers
@@ -234,12 +234,14 @@ def _track(args: argparse.Namespace) -> int:
                                    keep_images="video" in claimed, clutter=args.clutter, image_noise=args.noise,
                                    silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera),
                                    pose_proposal=args.pose_proposal, posture=posture,
-                                   depth_sensor=DepthSensor() if args.depth else None, lag=args.lag)
+                                   depth_sensor=DepthSensor() if args.depth else None, lag=args.lag,
+                                   refine={} if args.refine else None)
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
                         "models": str(args.models or "shipped default models"), "pose_proposal": args.pose_proposal,
                         "posture": None if args.posture is None else str(args.posture), "depth": args.depth,
+                        "refine": args.refine,
                         **summary}
             claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
         if "video" in claimed:
@@ -492,6 +494,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--lag", type=int, default=0,
                        help="also report fixed-lag smoothed estimates, each frame read this many frames later (the "
                             "demonstration is recorded: later frames tell which particles were right); default 0")
+    track.add_argument("--refine", action="store_true",
+                       help="refine the estimated pose (the smoothed one with --lag) against each frame's images by a "
+                            "local search beyond the particles' poses (tracking.refinement.PoseRefiner; slower)")
     track.add_argument("--grid-model", choices=["linear", "thin-plate"],
                        help="the paper's experiment (Figs. 10-12) on an approach-grid recording: train the approach "
                             "PHMM on its 3 x 3 grid (thin-plate: with a posture model; a minute or more) and track "

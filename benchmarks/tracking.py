@@ -14,7 +14,7 @@ particles), on one episode, rendering excluded, with the demonstration camera al
 runs' own frame rates are in their per-episode figures).
 
     python benchmarks/tracking.py [--seeds 310 311 312] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
-        [--side-camera]
+        [--side-camera] [--depth] [--lag 25] [--refine]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
     python benchmarks/tracking.py --from-markers --output results/tracking_markers.json
 
@@ -72,6 +72,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--no-object-place", action="store_true",
                         help="with --from-markers: score the block's motion only, not its place against each "
                              "particle's class (the tracker before the place term)")
+    parser.add_argument("--refine", action="store_true",
+                        help="refine the quoted estimate (the smoothed one with --lag) against its frame's images "
+                             "(tracking.refinement.PoseRefiner; the edges-only variant is not refined)")
     parser.add_argument("--lag", type=int, default=0,
                         help="also score fixed-lag smoothed estimates, this many frames behind (the same filter run)")
     parser.add_argument("--speed-only", action="store_true",
@@ -89,15 +92,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error("--no-pose-sharpening goes with --from-markers (the camera's estimate is not sharpened)")
     if args.no_far_leaps and not args.from_markers:
         parser.error("--no-far-leaps goes with --from-markers (the camera's tracker makes no far leaps)")
-    if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only or args.depth):
-        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera, --depth "
-                     "and --speed-only")
+    if args.from_markers and (args.clutter or args.noise or args.side_camera or args.speed_only or args.depth
+                              or args.refine):
+        parser.error("--from-markers tracks without images; leave out --clutter, --noise, --side-camera, --depth, "
+                     "--refine and --speed-only")
     return args
 
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
                       side_camera=False, from_markers=False, depth=False, lag=0, object_place=True,
-                      far_leaps=True, hand_turn=True, pose_sharpening=True) -> dict:
+                      far_leaps=True, hand_turn=True, pose_sharpening=True, refine=False) -> dict:
     """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
     import numpy as np
 
@@ -116,7 +120,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         else:
             result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
                                    image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera),
-                                   depth_sensor=DepthSensor() if depth else None, lag=lag)
+                                   depth_sensor=DepthSensor() if depth else None, lag=lag,
+                                   refine={} if refine else None)
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -242,13 +247,13 @@ def main(argv: list[str] | None = None) -> dict:
                                             silhouette, args.side_camera, args.from_markers,
                                             args.depth and silhouette, args.lag, not args.no_object_place,
                                             not args.no_far_leaps, not args.no_hand_turn,
-                                            not args.no_pose_sharpening)
+                                            not args.no_pose_sharpening, args.refine and silhouette)
     summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
                      "from_markers": args.from_markers, "depth": args.depth,
-                     "depth_weighs": "pose" if args.depth else None, "lag": args.lag,
+                     "depth_weighs": "pose" if args.depth else None, "lag": args.lag, "refine": args.refine,
                      "object_place": args.from_markers and not args.no_object_place,
                      "far_leaps": args.from_markers and not args.no_far_leaps,
                      "hand_turn": args.from_markers and not args.no_hand_turn,

@@ -76,6 +76,28 @@ def test_a_depth_camera_is_part_of_the_seeded_episode_and_reaches_the_estimate(s
     assert colour["rms_m_all"] != runs[0]["rms_m_all"]  # the depth images reach the pose estimate
 
 
+def test_the_refined_estimate_is_seeded_moves_only_the_pose_and_refuses_bad_settings(small):
+    """With ``refine``, the smoothed estimates are also refined against their frame's images: the same seed gives the
+    same poses, the filter and its smoothed estimates are as without it, and the arm moves where the images say
+    (within a few centimetres of the unrefined estimate)."""
+    models = load_default_models()
+    camera = dataclasses.replace(DEMONSTRATOR_CAMERA, width=160, height=120)
+    plain = track_episode(models, small, 3, particles=50, seed=2, camera=camera, lag=5)
+    runs = [track_episode(models, small, 3, particles=50, seed=2, camera=camera, lag=5, refine={"samples": 16})
+            for _ in range(2)]
+    poses = [np.stack([f.markers for f in run.refined]) for run in runs]
+    np.testing.assert_array_equal(poses[0], poses[1])
+    unrefined = np.stack([f.markers for f in plain.smoothed])
+    np.testing.assert_array_equal(np.stack([f.markers for f in runs[0].smoothed]), unrefined)  # the filter as it was
+    assert [f.class_id for f in runs[0].refined] == [f.class_id for f in plain.smoothed] and not plain.refined
+    moved = np.linalg.norm(poses[0] - unrefined, axis=2)
+    assert moved.max() > 0.001 and np.median(moved) < 0.05
+    summary = runs[0].summary()
+    assert summary["refined"]["hz"] < summary["hz"] and set(summary["refined"]["rms_m"]) == set(summary["rms_m"])
+    with pytest.raises(InvalidInputError, match="prior_sd"):
+        track_episode(models, small, 3, particles=50, camera=camera, refine={"prior_sd": (0.0, 0.1, 0.1)})
+
+
 def test_refuses_what_it_cannot_track(small):
     models = load_default_models()
     bare = dataclasses.replace(small, joint_names=(), episodes=tuple(dataclasses.replace(e, Q=None) for e in small))

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import minimize
@@ -38,6 +39,7 @@ from hoap_actions.tracking.approach_goal import read_approach_end
 from hoap_actions.tracking.chain_reading import read_manipulation_chain
 from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
+from hoap_actions.tracking.refinement import PoseRefiner
 from hoap_actions.tracking.smoothing import SmoothedFrame
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
@@ -80,15 +82,19 @@ class TrackResult:
     approach_places: dict[int, np.ndarray] = field(default_factory=dict)  # training approach ends by what followed
     chains: list[ManipulationChain] = field(default_factory=list)  # the training manipulations' chains of classes
     action_of_class: dict[int, int] = field(default_factory=dict)  # class id -> action id
+    refined: list[TrackedFrame] | list[SmoothedFrame] = field(default_factory=list)  # the quoted estimates, refined
+    refine_s: float = 0.0               # wall time of the refinement (s)
 
     def summary(self) -> dict:
         """RMS errors (m) of the scored markers, of the three pooled (the paper's figure) and of all, frame
         rate, approach-end error and frames to find it, per-frame agreement of the recognised class with
         discovery's (and of its kind: approach, manipulation or remove), and both class sequences; with a
-        lag, the same scores of the smoothed estimates under ``"smoothed"``; with the block's sightings and the
-        models' approach places and chains, each approach's end read from the manipulation recognised after it
-        (:mod:`~hoap_actions.tracking.approach_goal`), scored as the filter's, and the classes with the manipulation
-        read again as the chain the block's displacement fits (:mod:`~hoap_actions.tracking.chain_reading`)."""
+        lag, the same scores of the smoothed estimates under ``"smoothed"``; with a refinement, those of the
+        refined estimates (smoothed with a lag) and the frame rate with it under ``"refined"``; with the block's
+        sightings and the models' approach places and chains, each approach's end read from the manipulation
+        recognised after it (:mod:`~hoap_actions.tracking.approach_goal`), scored as the filter's, and the classes
+        with the manipulation read again as the chain the block's displacement fits
+        (:mod:`~hoap_actions.tracking.chain_reading`)."""
         scores = self._scores(self.frames)
         recognized = self._recognized()  # the classes both readings of the finished track start from
         errors, found = [], []
@@ -99,6 +105,9 @@ class TrackResult:
                 outside = np.flatnonzero(gap >= CONVERGED_M)
                 found.append(int(outside[-1]) + 1 if outside.size else 0)
         smoothed = {"smoothed": {"lag": self.lag, **self._scores(self.smoothed)}} if self.lag else {}
+        if self.refined:
+            refined = {key: value for key, value in self._scores(self.refined).items() if key != "recognized"}
+            smoothed["refined"] = {**refined, "hz": len(self.frames) / (self.track_s + self.refine_s)}
         return {
             **{key: scores[key] for key in ("rms_m", "rms_m_all", "rms_m_pooled")},
             "hz": len(self.frames) / self.track_s,
@@ -196,7 +205,8 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                   silhouette: bool = True, object_cue: bool = True,
                   progress: Callable[[int, int], None] | None = None, pose_proposal: str = "offsets",
                   posture: PostureModel | None = None, depth_sensor: DepthSensor | None = None,
-                  lag: int = 0, pose_sharpening: float = 1.0, depth_weighs: str = "pose") -> TrackResult:
+                  lag: int = 0, pose_sharpening: float = 1.0, depth_weighs: str = "pose",
+                  refine: Mapping[str, object] | None = None) -> TrackResult:
     """Render episode ``episode`` of ``demos`` from ``camera`` (the demonstration camera by default) and
     track it (``keep_images``: keep every camera and edge image, for :func:`tracking_video_frames`).
     ``more_cameras`` add views, scored together by eq. (9); the kept images are ``camera``'s. ``clutter``
@@ -208,7 +218,10 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
     adds each view's depth image as that sensor reads it (an RGB-D camera; its errors drawn from ``seed``,
     apart from the image noise's) to the evidence. ``lag``: frames of fixed-lag smoothing, scored beside the
     filter's own estimates (:mod:`~hoap_actions.tracking.smoothing`). ``pose_sharpening`` and ``depth_weighs``
-    (what the depth images weigh: the pose estimate or the filter): as :class:`ActionTracker`'s."""
+    (what the depth images weigh: the pose estimate or the filter): as :class:`ActionTracker`'s. ``refine``: the
+    estimates (the smoothed ones with a lag) also refined against their frame's images by a
+    :class:`~hoap_actions.tracking.refinement.PoseRefiner` with these settings (``{}``: its defaults), in the
+    result's ``refined`` beside the unrefined ones (the same filter run)."""
     ep = _bridged_episode(models, demos, episode)
     views = (camera, *more_cameras)
     frames, kept, pictures, seen = [], [], [], []
@@ -219,20 +232,29 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                                 pose_sharpening=pose_sharpening, depth_weighs=depth_weighs)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             _block_locator(camera, renderer.object_half_size_m) if object_cue else None)
+        refine_with = _Refined(PoseRefiner(body, views, **refine) if refine is not None else None, seed, episode)
+        smoothed: list[SmoothedFrame] = []
         for t in range(ep.T):
             images = renderer.frame(ep, t)
             frames.append(observe(images, renderer.depths()))
+            refine_with.keep(observe.edges, observe.masks, renderer.depths())
+            smoothed += tracker.smoothed_frames() if lag else []
+            refine_with.read(smoothed if lag else frames)
             seen.append(tracker.object_seen)
             if keep_images:
                 kept.append(observe.edges[0])
                 pictures.append(images[0])
             if progress is not None:
                 progress(t + 1, ep.T)
+        if lag:
+            smoothed += tracker.smoothed_frames(final=True)
+            refine_with.read(smoothed)
     truth, approaches = _classes_and_approach_ends(models, ep)
     return TrackResult(frames, ep.H, truth, approaches, tuple(models.marker_names_), particles, observe.spent,
                        body.torso_base, silhouette, kept, pictures, len(views), _kinds(models), lag,
-                       tracker.smoothed_frames(final=True) if lag else [], seen, _approach_places(models),
-                       manipulation_chains(models.discovery_), _action_of_class(models))
+                       smoothed, seen, _approach_places(models),
+                       manipulation_chains(models.discovery_), _action_of_class(models), refine_with.refined,
+                       refine_with.spent)
 
 
 @dataclass
@@ -350,16 +372,45 @@ class _Observer:
         self.subtractors = None if backgrounds is None else [BackgroundSubtractor(empty) for empty in backgrounds]
         self.spent = 0.0
         self.edges: list[np.ndarray] = []
+        self.masks: list[np.ndarray] | None = None
 
     def __call__(self, images: list[np.ndarray], depths: list[np.ndarray] | None = None) -> TrackedFrame:
         started = time.perf_counter()
         self.edges = [edge_image(image) for image in images]
-        masks = None if self.subtractors is None else [subtract(image) for subtract, image
-                                                       in zip(self.subtractors, images)]
+        self.masks = masks = None if self.subtractors is None else [subtract(image) for subtract, image
+                                                                    in zip(self.subtractors, images)]
         seen, whole = (None, False) if self.locate is None else self.locate.sighting(images[0])
         frame = self.tracker.step(self.edges, masks, seen, depths, object_whole=whole)
         self.spent += time.perf_counter() - started
         return frame
+
+
+class _Refined:
+    """Each frame's images kept until its estimate is out (``lag`` frames later), then the estimate refined
+    against them (:class:`PoseRefiner`; without one, nothing is kept or refined), searching from the previous
+    frame's parameters: ``refined`` the refined estimates in frame order, ``spent`` their wall time (s)."""
+
+    def __init__(self, refiner: PoseRefiner | None, seed: int, episode: int) -> None:
+        self.refiner, self.rng = refiner, np.random.default_rng([seed, episode, 2])
+        self._images: deque[tuple] = deque()
+        self._last: np.ndarray | None = None
+        self.refined: list[TrackedFrame] | list[SmoothedFrame] = []
+        self.spent = 0.0
+
+    def keep(self, edges: list[np.ndarray], masks: list[np.ndarray] | None,
+             depths: list[np.ndarray] | None) -> None:
+        if self.refiner is not None:
+            self._images.append((edges, masks, depths))
+
+    def read(self, estimates: list[TrackedFrame] | list[SmoothedFrame]) -> None:
+        """Refine the estimates of ``estimates`` (every estimate so far, in frame order) not refined yet."""
+        if self.refiner is None:
+            return
+        started = time.perf_counter()
+        for frame in estimates[len(self.refined):]:
+            markers, self._last = self.refiner.refine(frame.markers, *self._images.popleft(), self.rng, self._last)
+            self.refined.append(replace(frame, markers=markers))
+        self.spent += time.perf_counter() - started
 
 
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
