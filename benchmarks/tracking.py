@@ -77,6 +77,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "(tracking.refinement.PoseRefiner; the edges-only variant is not refined)")
     parser.add_argument("--lag", type=int, default=0,
                         help="also score fixed-lag smoothed estimates, this many frames behind (the same filter run)")
+    parser.add_argument("--no-ablation", action="store_true",
+                        help="leave out the edges-only variant and the speed part (a run whose question is another, "
+                             "e.g. the refined estimate against the unrefined one of the same filter runs)")
     parser.add_argument("--speed-only", action="store_true",
                         help="measure frames per second only (on the first seed's last episode), e.g. on a quiet "
                              "machine")
@@ -132,7 +135,8 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
               f"{summary['hz']:.0f} Hz" + (f"; smoothed {100 * summary['smoothed']['rms_m_all']:.1f} cm, "
                                          f"{summary['smoothed']['frame_accuracy']:.0%}" if lag else "")
               + ("" if summary.get("read_frame_accuracy") is None else
-                 f"; read from the block {summary['read_frame_accuracy']:.0%}"), flush=True)
+                 f"; read from the block {summary['read_frame_accuracy']:.0%}")
+              + (f"; refined {100 * summary['refined']['rms_m_all']:.1f} cm" if refine else ""), flush=True)
     truth = np.concatenate([r["truth"] for r in runs])
     known = truth != UNKNOWN
     majority = np.bincount(truth[known]).argmax()
@@ -163,6 +167,9 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         pooled["read_frame_accuracy"] = float(np.mean(read[known] == truth[known]))
     found = [r["frames_to_converge"] for r in runs if r["frames_to_converge"] is not None]
     pooled["frames_to_converge_median"] = float(np.median(found)) if found else None
+    if refine:  # the same estimates refined against their frames (their classes are the estimates')
+        refined = [{**r["refined"], "recognized": (r["smoothed"] if lag else r)["recognized"]} for r in runs]
+        pooled["refined"] = {**scores(refined), "hz": float(np.median([r["refined"]["hz"] for r in runs]))}
     if lag:
         pooled["smoothed"] = {"lag": lag, **scores([r["smoothed"] for r in runs])}
         for r in runs:
@@ -198,8 +205,9 @@ def share_found(found: int, approaches: int) -> dict:
 
 def summarise(per_recording: dict) -> dict:
     """Mean and 95 % interval over the recordings of each pooled figure (the classes read again from the block's
-    displacement among them); the approaches whose estimated end came within 2 cm, the filter's and read from the
-    task, over all recordings, with their Wilson intervals."""
+    displacement among them; the smoothed and refined estimates' when the runs made them); the approaches whose
+    estimated end came within 2 cm, the filter's and read from the task, over all recordings, with their Wilson
+    intervals."""
     pooled = [r["pooled"] for r in per_recording.values()]
     summary = {key: spread([p[key] for p in pooled]) for key in
                ("rms_m_all", "rms_m_pooled", "baseline_rms_m_all", "phi_error_m", "frame_accuracy", "kind_accuracy",
@@ -218,6 +226,11 @@ def summarise(per_recording: dict) -> dict:
             summary[f"smoothed_{key}"] = spread([p["smoothed"][key] for p in pooled])
         for marker in pooled[0]["smoothed"]["rms_m"]:
             summary[f"smoothed_rms_m_{marker}"] = spread([p["smoothed"]["rms_m"][marker] for p in pooled])
+    if "refined" in pooled[0]:  # the same estimates refined against their frames (tracking.refinement)
+        for key in ("rms_m_all", "rms_m_pooled", "hz"):
+            summary[f"refined_{key}"] = spread([p["refined"][key] for p in pooled])
+        for marker in pooled[0]["refined"]["rms_m"]:
+            summary[f"refined_rms_m_{marker}"] = spread([p["refined"]["rms_m"][marker] for p in pooled])
     return summary
 
 
@@ -238,6 +251,7 @@ def main(argv: list[str] | None = None) -> dict:
         return result
     per_recording, edges_only = {}, {}
     variants = ((("markers and block", per_recording, True),) if args.from_markers else
+                (("edges and silhouette", per_recording, True),) if args.no_ablation else
                 (("edges and silhouette", per_recording, True), ("edges only", edges_only, False)))
     for seed in args.seeds:
         demos = load_demonstrations(ensure_recording("paper", seed, args.data))
@@ -263,7 +277,7 @@ def main(argv: list[str] | None = None) -> dict:
         "goals": GOALS, "paper": {"rms_m": 0.033, "hz": 10, "particles": 400, "frames_to_converge": 60},
         "summary": summaries[variants[0][0]], "per_recording": per_recording,
     }
-    if not args.from_markers:
+    if not (args.from_markers or args.no_ablation):
         result.update(summary_edges_only=summaries["edges only"], per_recording_edges_only=edges_only,
                       speed=speed(models, load_demonstrations(ensure_recording("paper", args.seeds[0], args.data)),
                                   args.episodes[-1]))

@@ -38,7 +38,7 @@ def _hand_error(pose, truth):
 
 def test_the_refined_hand_is_nearer_the_true_one_than_the_estimate_it_starts_from():
     """Two views of an arm; the estimate's hand 3 cm off (three directions): each refined index tip is nearer the
-    truth, on average within half the start's error; an estimate that starts on the truth stays within 1.5 cm."""
+    truth, on average within half the start's error; an estimate that starts on the truth stays within 1 cm."""
     body = BodyModel(MARKERS, TORSO_BASE)
     cameras = (FRONT, SIDE)
     refiner = PoseRefiner(body, cameras)
@@ -46,24 +46,24 @@ def test_the_refined_hand_is_nearer_the_true_one_than_the_estimate_it_starts_fro
     errors = []
     for seed in range(3):
         direction = np.random.default_rng(seed).normal(size=3)
-        off = refiner.posed(ARM, np.r_[0.03 * direction / np.linalg.norm(direction), 0.0, 0.0, 0.0, 0.0, 0.0])[0]
+        off = refiner.posed(ARM, np.r_[0.03 * direction / np.linalg.norm(direction), 0.0, 0.0, 0.0, 0.0])[0]
         refined, theta = refiner.refine(off, edges, masks, None, np.random.default_rng(seed))
         errors.append(_hand_error(refined, ARM))
-        assert errors[-1] < _hand_error(off, ARM) and theta.shape == (8,)
+        assert errors[-1] < _hand_error(off, ARM) and theta.shape == (7,)
     assert np.mean(errors) < 0.015
     kept, _ = refiner.refine(ARM, edges, masks, None, np.random.default_rng(0))
-    assert _hand_error(kept, ARM) < 0.015
+    assert _hand_error(kept, ARM) < 0.01
 
 
 def test_posed_moves_the_hand_rigidly_and_the_elbow_by_half_the_hand_s_shift():
     body = BodyModel(MARKERS, TORSO_BASE)
     refiner = PoseRefiner(body, (FRONT,))
     shift = np.array([0.02, -0.01, 0.03])
-    moved = refiner.posed(ARM, np.r_[shift, 0.0, 0.0, 0.0, 0.0, 0.0])[0]
+    moved = refiner.posed(ARM, np.r_[shift, 0.0, 0.0, 0.0, 0.0])[0]
     np.testing.assert_allclose(moved[2:] - ARM[2:], np.tile(shift, (4, 1)))
     np.testing.assert_allclose(moved[1] - ARM[1], shift / 2)
     np.testing.assert_allclose(moved[0], ARM[0])
-    turned = refiner.posed(ARM, np.r_[0.0, 0.0, 0.0, np.pi / 2, 0.0, 0.0, 0.0, 0.0])[0]
+    turned = refiner.posed(ARM, np.r_[0.0, 0.0, 0.0, np.pi / 2, 0.0, 0.0, 0.0])[0]
     reach = ARM[3] - ARM[2]
     np.testing.assert_allclose(turned[3] - turned[2], [-reach[1], reach[0], reach[2]], atol=1e-12)  # a quarter turn
 

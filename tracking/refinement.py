@@ -3,7 +3,7 @@
 The filter's estimate is a weighted mean of its particles' poses, so it can only be as near the arm as the
 particles are; their poses come from the class means, and a phase or class confused for a few frames
 leaves the hand centimetres off even where two views or a depth image show it plainly. The refiner moves
-the estimate itself: the hand shifted as a whole, turned about the vertical and pitched through the wrist, the elbow
+the estimate itself: the hand shifted as a whole and turned about the vertical through the wrist, the elbow
 following half the hand's shift plus its own shift, scored by the same terms as the filter (edges,
 silhouettes, depth; :mod:`~hoap_actions.tracking.image_evidence`) with a sharper edge sigma, and a Gaussian
 prior that keeps it near the estimate where the images say little. The search is the cross-entropy method
@@ -27,7 +27,7 @@ __all__ = ["PoseRefiner"]
 
 ELBOW, WRIST = 1, 2  # marker rows (shoulder, elbow, wrist, index tip, index knuckle, thumb tip)
 HAND_ROWS = slice(2, 6)
-PARAMETERS = 8  # hand shift x, y, z (m), hand turn and pitch (rad), elbow shift x, y, z (m)
+PARAMETERS = 7  # hand shift x, y, z (m), hand turn (rad), elbow shift x, y, z (m)
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ class PoseRefiner:
 
     body: BodyModel
     cameras: tuple[Projector, ...]
-    prior_sd: tuple[float, float, float] = (0.04, 0.4, 0.04)
+    prior_sd: tuple[float, float, float] = (0.03, 0.3, 0.02)
     sigmas: tuple[float, float, float] = (0.3, 0.6, 0.01)
     samples: int = 64
     rounds: int = 5
@@ -60,12 +60,11 @@ class PoseRefiner:
     @property
     def _prior(self) -> np.ndarray:
         hand, turn, elbow = self.prior_sd
-        return np.array([hand, hand, hand, turn, turn, elbow, elbow, elbow])
+        return np.array([hand, hand, hand, turn, elbow, elbow, elbow])
 
     def posed(self, markers: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """Poses ``(n, M, 3)`` of ``markers`` (M, 3) moved by parameters ``theta`` (n, 8): the fingers turned about
-        the vertical through the wrist, then pitched about the horizontal line through the wrist across the
-        hand's turned direction; the hand shifted; the elbow moved by half the hand's shift and its own."""
+        """Poses ``(n, M, 3)`` of ``markers`` (M, 3) moved by parameters ``theta`` (n, 7): the fingers turned about
+        the vertical through the wrist; the hand shifted; the elbow moved by half the hand's shift and its own."""
         theta = np.atleast_2d(theta)
         out = np.repeat(np.asarray(markers, float)[None], len(theta), axis=0)
         wrist = out[:, WRIST].copy()
@@ -73,19 +72,14 @@ class PoseRefiner:
         above = wrist + np.array([0.0, 0.0, 1.0])
         for k in range(1, hand.shape[1]):
             hand[:, k] = _swivel(wrist, hand[:, k], above, theta[:, 3])
-        pointing = hand[:, 2] - wrist  # wrist to knuckle
-        across = np.stack([-pointing[:, 1], pointing[:, 0], np.zeros(len(theta))], axis=1)
-        across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-9)
-        for k in range(1, hand.shape[1]):
-            hand[:, k] = _swivel(wrist, hand[:, k], wrist + across, theta[:, 4])
         out[:, HAND_ROWS] = hand + theta[:, None, 0:3]
-        out[:, ELBOW] += 0.5 * theta[:, 0:3] + theta[:, 5:8]
+        out[:, ELBOW] += 0.5 * theta[:, 0:3] + theta[:, 4:7]
         return out
 
     def refine(self, markers: np.ndarray, edges: Sequence[np.ndarray], masks: Sequence[np.ndarray] | None,
                depths: Sequence[np.ndarray] | None, rng: np.random.Generator,
                start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The refined pose ``(M, 3)`` and its parameters (8,); ``start``: parameters to search from (e.g. the
+        """The refined pose ``(M, 3)`` and its parameters (7,); ``start``: parameters to search from (e.g. the
         previous frame's), zeros by default."""
         markers = np.asarray(markers, dtype=float)
         prior = self._prior
@@ -101,7 +95,7 @@ class PoseRefiner:
 
     def score(self, markers: np.ndarray, theta: np.ndarray, edges: Sequence[np.ndarray],
               masks: Sequence[np.ndarray] | None, depths: Sequence[np.ndarray] | None) -> np.ndarray:
-        """Log score (n,) of parameters ``theta`` (n, 8): the images' terms plus the prior's."""
+        """Log score (n,) of parameters ``theta`` (n, 7): the images' terms plus the prior's."""
         poses = self.posed(markers, theta)
         colour, depth = image_log_likelihoods(self.body, list(self.cameras), poses, list(edges),
                                               None if masks is None else list(masks),
