@@ -42,7 +42,7 @@ class PoseRefiner:
     body: BodyModel
     cameras: tuple[Projector, ...]
     prior_sd: tuple[float, float, float] = (0.03, 0.3, 0.02)
-    sigmas: tuple[float, float, float] = (0.3, 0.6, 0.01)
+    sigmas: tuple[float, float, float] = (0.2, 0.6, 0.01)
     samples: int = 64
     rounds: int = 5
     elite: float = 0.2
