@@ -86,38 +86,3 @@ def test_refiner_bad_settings():
         PoseRefiner(body, (FRONT,), sigmas=(0.3, 0.6))
     with pytest.raises(InvalidInputError, match="samples"):
         PoseRefiner(body, (FRONT,), samples=8, elite=0.1)
-
-
-def test_with_self_hidden_contours_the_refiner_keeps_a_true_pose_where_the_images_drew_it():
-    """An outline running inside the arm's own silhouette draws no edge; scored anyway, it pushes the hand out of
-    the forearm and the refined pose a centimetre off the drawn one (above). Left out, the truth stays within 5 mm."""
-    body = BodyModel(MARKERS, TORSO_BASE)
-    cameras = (FRONT, SIDE)
-    edges, masks = _evidence(body, ARM, cameras)
-    hidden = PoseRefiner(body, cameras, self_hidden=True)
-    for seed in range(3):
-        kept, _ = hidden.refine(ARM, edges, masks, None, np.random.default_rng(seed))
-        assert _hand_error(kept, ARM) < 0.005
-
-
-def test_contour_points_inside_another_arm_capsule_are_found_and_the_trunk_hides_nothing():
-    """Known answers: the palm's cap at the wrist lies inside the forearm; every flag agrees with a direct distance
-    test to the other capsules of the arm (the trunk's capsules hide nothing)."""
-    body = BodyModel(MARKERS, TORSO_BASE)
-    bodies = body.project(ARM[None], FRONT)
-    contour = body.contour(bodies, hide=False)
-    inside = body.inside_other_limbs(bodies, contour)[0]
-    per = 2 * body.points_per_side + 2
-    names = [(c.start, c.end) for c in body.capsules]
-    palm = names.index(("wrist", "index_knuckle"))
-    assert inside[palm * per + 2 * body.points_per_side]  # the cap at the palm's start, the wrist
-    a, b, rho_a, rho_b = bodies.a[0], bodies.b[0], bodies.rho_a[0], bodies.rho_b[0]
-    expected = np.zeros(len(inside), dtype=bool)
-    for k, point in enumerate(contour[0]):
-        for c in set(range(len(body.capsules))) - {k // per} - set(body.trunk.tolist()):
-            u = b[c] - a[c]
-            t = np.clip(np.dot(point - a[c], u) / max(np.dot(u, u), 1e-9), 0.0, 1.0)
-            rho = rho_a[c] + t * (rho_b[c] - rho_a[c]) - 1.0
-            expected[k] |= bool(np.linalg.norm(point - a[c] - t * u) < max(rho, 0.0))
-    np.testing.assert_array_equal(inside, expected)
-    assert 0 < inside.sum() < len(inside)

@@ -65,15 +65,9 @@ def sample(image: np.ndarray, pixels: np.ndarray, camera: Projector, outside: fl
     return values
 
 
-def contour_misfit(body: BodyModel, bodies: ProjectedBodies, edges: np.ndarray, camera: Projector,
-                   self_hidden: bool = False) -> np.ndarray:
-    """Per particle: eq. (8)'s mean ``(1 - G(c))^2`` over the visible contour points on the edge image;
-    ``self_hidden``: the points inside another capsule of the arm are not visible either
-    (:meth:`BodyModel.inside_other_limbs`)."""
-    contour = body.contour(bodies)
-    if self_hidden:
-        contour = np.where(body.inside_other_limbs(bodies, contour)[..., None], np.nan, contour)
-    return visible_mean((1.0 - sample(edges, contour, camera)) ** 2)
+def contour_misfit(body: BodyModel, bodies: ProjectedBodies, edges: np.ndarray, camera: Projector) -> np.ndarray:
+    """Per particle: eq. (8)'s mean ``(1 - G(c))^2`` over the visible contour points on the edge image."""
+    return visible_mean((1.0 - sample(edges, body.contour(bodies), camera)) ** 2)
 
 
 def silhouette_misfit(body: BodyModel, bodies: ProjectedBodies, mean_pose: np.ndarray, mask: np.ndarray,
@@ -103,18 +97,17 @@ def depth_misfit(body: BodyModel, bodies: ProjectedBodies, depth: np.ndarray, ca
 
 def image_log_likelihoods(body: BodyModel, cameras: list[Projector], markers: np.ndarray, images: list[np.ndarray],
                           masks: list[np.ndarray] | None, depths: list[np.ndarray] | None, mean_pose: np.ndarray | None,
-                          sigmas: tuple[float, float, float], self_hidden: bool = False
-                          ) -> tuple[np.ndarray, np.ndarray | None]:
+                          sigmas: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray | None]:
     """Per particle of poses ``markers`` (n, M, 3), the log-likelihood of the colour terms (edges, and silhouettes
     with ``masks``; ``mean_pose`` the particles' weighted mean) and of the depth terms (None without ``depths``),
     summed over the views, each misfit over twice its sigma squared (``sigmas``: edges, silhouette, depth); each
-    body projected once; ``self_hidden`` as for :func:`contour_misfit`."""
+    body projected once."""
     edge_sigma, silhouette_sigma, depth_sigma = sigmas
     colour = np.zeros(len(markers))
     depth = None if depths is None else np.zeros(len(markers))
     for k, (image, camera) in enumerate(zip(images, cameras)):
         bodies = body.project(markers, camera)
-        colour -= contour_misfit(body, bodies, image, camera, self_hidden) / (2.0 * edge_sigma**2)
+        colour -= contour_misfit(body, bodies, image, camera) / (2.0 * edge_sigma**2)
         if masks is not None:
             colour -= silhouette_misfit(body, bodies, mean_pose, masks[k], camera) / (2.0 * silhouette_sigma**2)
         if depths is not None:

@@ -36,8 +36,7 @@ class PoseRefiner:
 
     ``prior_sd``: the Gaussian prior's standard deviations of the hand's shift (m), its turn (rad) and the
     elbow's own shift (m); ``sigmas``: the edge, silhouette and depth sigmas of the score; ``samples`` per
-    round, ``rounds``, ``elite``: the share of samples that refits the search; ``self_hidden``: contour points inside
-    another capsule of the arm are not scored (:meth:`~hoap_actions.vision.body_model.BodyModel.inside_other_limbs`).
+    round, ``rounds``, ``elite``: the share of samples that refits the search.
     """
 
     body: BodyModel
@@ -47,7 +46,6 @@ class PoseRefiner:
     samples: int = 64
     rounds: int = 5
     elite: float = 0.2
-    self_hidden: bool = False
 
     def __post_init__(self) -> None:
         if len(self.prior_sd) != 3 or not all(np.isfinite(s) and s > 0 for s in self.prior_sd):
@@ -101,7 +99,6 @@ class PoseRefiner:
         poses = self.posed(markers, theta)
         colour, depth = image_log_likelihoods(self.body, list(self.cameras), poses, list(edges),
                                               None if masks is None else list(masks),
-                                              None if depths is None else list(depths), markers, self.sigmas,
-                                              self.self_hidden)
+                                              None if depths is None else list(depths), markers, self.sigmas)
         prior = -0.5 * np.sum((theta / self._prior) ** 2, axis=1)
         return colour + prior + (0.0 if depth is None else depth)

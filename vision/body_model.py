@@ -57,7 +57,6 @@ ARM_CAPSULES = (
     Capsule("wrist", "thumb_tip", 0.0095),
 )
 COVER_MARGIN_PX = 1.0  # px: the denoising blur and the low threshold spread a mask past the outline (validation)
-SELF_HIDE_MARGIN_PX = 1.0  # px: a contour point this near another capsule's outline still draws an edge
 LIMB_MIN_RADIUS_M = 0.02  # fingers (1 cm) are 1-3 px wide at 320 x 240: a softened mask barely holds them
 # m, points of the trunk placed from the right shoulder marker (measured on the demonstrator at rest and
 # mid-reach, within 1.5 cm): the capsule end below the thorax's top (its cap reaches the top), and the
@@ -202,23 +201,6 @@ class BodyModel:
         z_side = z_a[:, :, None] + t[..., 0] * (z_b - z_a)[:, :, None]
         z = np.concatenate([z_side, z_side, np.stack([z_a, z_b], axis=2)], axis=2).reshape(n, -1)
         return self._hide(pixels, z)
-
-    def inside_other_limbs(self, bodies: ProjectedBodies, pixels: np.ndarray) -> np.ndarray:
-        """``(N, P)``: whether each of the contour pixels ``(N, P, 2)`` (as :meth:`contour` orders them, capsule
-        by capsule) lies strictly inside the silhouette of another capsule of the arm (not the trunk): an outline
-        that runs inside the arm's own silhouette draws no edge (the forearm's cap within the palm)."""
-        a, b, rho_a, rho_b = bodies.a, bodies.b, bodies.rho_a, bodies.rho_b
-        per_capsule = 2 * self.points_per_side + 2
-        owner = np.repeat(np.arange(len(self.capsules)), per_capsule)
-        px, py = pixels[..., 0], pixels[..., 1]
-        inside = np.zeros(px.shape, dtype=bool)
-        for c in np.setdiff1d(np.arange(len(self.capsules)), self.trunk):
-            ux, uy = (b[:, c, k:k + 1] - a[:, c, k:k + 1] for k in (0, 1))
-            dx, dy = px - a[:, c, 0:1], py - a[:, c, 1:2]
-            t = np.clip((dx * ux + dy * uy) / np.maximum(ux * ux + uy * uy, 1e-9), 0.0, 1.0)
-            rho = rho_a[:, c:c + 1] + t * (rho_b[:, c:c + 1] - rho_a[:, c:c + 1]) - SELF_HIDE_MARGIN_PX
-            inside |= ((dx - t * ux) ** 2 + (dy - t * uy) ** 2 < np.maximum(rho, 0.0) ** 2) & (owner != c)
-        return inside
 
     def interior(self, bodies: ProjectedBodies) -> np.ndarray:
         """Pixels ``(N, L * K, 2)`` along the projected axes of the limbs (:attr:`limbs`): where the body
