@@ -20,7 +20,7 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.tracking.image_evidence import image_log_likelihoods
-from hoap_actions.tracking.poses import _swivel
+from hoap_actions.tracking.poses import swivel
 from hoap_actions.vision.body_model import BodyModel, Projector
 
 __all__ = ["PoseRefiner"]
@@ -71,7 +71,7 @@ class PoseRefiner:
         hand = out[:, HAND_ROWS]
         above = wrist + np.array([0.0, 0.0, 1.0])
         for k in range(1, hand.shape[1]):
-            hand[:, k] = _swivel(wrist, hand[:, k], above, theta[:, 3])
+            hand[:, k] = swivel(wrist, hand[:, k], above, theta[:, 3])
         out[:, HAND_ROWS] = hand + theta[:, None, 0:3]
         out[:, ELBOW] += 0.5 * theta[:, 0:3] + theta[:, 4:7]
         return out
