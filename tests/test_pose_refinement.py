@@ -84,5 +84,7 @@ def test_refiner_bad_settings():
         PoseRefiner(body, (FRONT,), prior_sd=(0.03, -1.0, 0.02))
     with pytest.raises(InvalidInputError, match="sigmas"):
         PoseRefiner(body, (FRONT,), sigmas=(0.3, 0.6))
+    with pytest.raises(InvalidInputError, match="prior_sd"):
+        PoseRefiner(body, (FRONT,), prior_sd="abc")
     with pytest.raises(InvalidInputError, match="samples"):
         PoseRefiner(body, (FRONT,), samples=8, elite=0.1)

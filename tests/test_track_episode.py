@@ -96,6 +96,8 @@ def test_the_refined_estimate_is_seeded_moves_only_the_pose_and_refuses_bad_sett
     assert summary["refined"]["hz"] < summary["hz"] and set(summary["refined"]["rms_m"]) == set(summary["rms_m"])
     with pytest.raises(InvalidInputError, match="prior_sd"):
         track_episode(models, small, 3, particles=50, camera=camera, refine={"prior_sd": (0.0, 0.1, 0.1)})
+    with pytest.raises(InvalidInputError, match="refine takes a mapping of"):
+        track_episode(models, small, 3, particles=50, camera=camera, refine={"sharpness": 2})
 
 
 def test_refuses_what_it_cannot_track(small):

@@ -232,7 +232,7 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                                 pose_sharpening=pose_sharpening, depth_weighs=depth_weighs)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             _block_locator(camera, renderer.object_half_size_m) if object_cue else None)
-        refine_with = _Refined(PoseRefiner(body, views, **refine) if refine is not None else None, seed, episode)
+        refine_with = _Refined(_refiner(body, views, refine), seed, episode)
         smoothed: list[SmoothedFrame] = []
         for t in range(ep.T):
             images = renderer.frame(ep, t)
@@ -383,6 +383,16 @@ class _Observer:
         frame = self.tracker.step(self.edges, masks, seen, depths, object_whole=whole)
         self.spent += time.perf_counter() - started
         return frame
+
+
+def _refiner(body: BodyModel, views: tuple[Camera, ...], settings: Mapping[str, object] | None) -> PoseRefiner | None:
+    """The refiner ``settings`` ask for (None: none), or an error naming the settings it takes."""
+    if settings is None:
+        return None
+    known = {f.name for f in dataclasses.fields(PoseRefiner)} - {"body", "cameras"}
+    if not isinstance(settings, Mapping) or set(settings) - known:
+        raise InvalidInputError(f"refine takes a mapping of {sorted(known)} (or None); got {settings!r}")
+    return PoseRefiner(body, views, **settings)
 
 
 class _Refined:

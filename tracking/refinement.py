@@ -48,9 +48,9 @@ class PoseRefiner:
     elite: float = 0.2
 
     def __post_init__(self) -> None:
-        if len(self.prior_sd) != 3 or not all(np.isfinite(s) and s > 0 for s in self.prior_sd):
+        if not _three_positive(self.prior_sd):
             raise InvalidInputError(f"prior_sd takes three standard deviations > 0 (m, rad, m); got {self.prior_sd!r}")
-        if len(self.sigmas) != 3 or not all(np.isfinite(s) and s > 0 for s in self.sigmas):
+        if not _three_positive(self.sigmas):
             raise InvalidInputError(f"sigmas takes three sigmas > 0 (edges, silhouette, depth m); got {self.sigmas!r}")
         if not (isinstance(self.samples, int) and self.samples >= 4 and isinstance(self.rounds, int)
                 and self.rounds >= 1 and 0 < self.elite <= 0.5 and self.elite * self.samples >= 2):
@@ -102,3 +102,12 @@ class PoseRefiner:
                                               None if depths is None else list(depths), markers, self.sigmas)
         prior = -0.5 * np.sum((theta / self._prior) ** 2, axis=1)
         return colour + prior + (0.0 if depth is None else depth)
+
+
+def _three_positive(values: object) -> bool:
+    """Whether ``values`` are three finite numbers > 0."""
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return array.shape == (3,) and bool(np.all(np.isfinite(array) & (array > 0)))
