@@ -266,6 +266,11 @@ def _track(args: argparse.Namespace) -> int:
         print(f"smoothed {args.lag} frames behind: RMS pooled {100 * smoothed['rms_m_pooled']:.1f} cm, all markers "
               f"{100 * smoothed['rms_m_all']:.1f} cm"
               + ("" if smoothed["frame_accuracy"] is None else f"; class agrees on {smoothed['frame_accuracy']:.0%}"))
+    if "refined" in summary:
+        refined = summary["refined"]
+        print(f"refined against each frame's images: RMS shoulder {100 * refined['rms_m']['shoulder']:.1f}, elbow "
+              f"{100 * refined['rms_m']['elbow']:.1f}, finger {100 * refined['rms_m']['index_tip']:.1f} cm (pooled "
+              f"{100 * refined['rms_m_pooled']:.1f}), {refined['hz']:.0f} frames/s with the refinement")
     if summary.get("read_frame_accuracy") is not None:
         print(f"the manipulation read again as the chain the block's displacement fits: class agrees on "
               f"{summary['read_frame_accuracy']:.0%}")

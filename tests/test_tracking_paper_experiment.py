@@ -21,8 +21,8 @@ from hoap_actions.tracking.poses import (
     OffsetPoses,
     TurnedHandOffsets,
     _arm_gain,
+    _swivel,
     pose_proposal,
-    swivel,
     turn_hand,
 )
 from hoap_actions.tracking.tracking_models import TrackingModels
@@ -116,11 +116,11 @@ def test_the_swivel_turns_the_elbow_about_the_shoulder_wrist_line():
     rng = np.random.default_rng(1)
     shoulder, elbow, wrist = rng.normal(size=(3, 50, 3))
     angle = rng.uniform(-np.pi, np.pi, 50)
-    turned = swivel(shoulder, elbow, wrist, angle)
+    turned = _swivel(shoulder, elbow, wrist, angle)
     for a, b in ((shoulder, elbow), (wrist, elbow)):  # both segments keep their lengths
         np.testing.assert_allclose(np.linalg.norm(turned - a, axis=1), np.linalg.norm(b - a, axis=1), rtol=1e-9)
-    np.testing.assert_allclose(swivel(shoulder, elbow, wrist, np.zeros(50)), elbow, atol=1e-12)
-    quarter = swivel(np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), np.array([[0.0, 0.0, 2.0]]), np.array([np.pi / 2]))
+    np.testing.assert_allclose(_swivel(shoulder, elbow, wrist, np.zeros(50)), elbow, atol=1e-12)
+    quarter = _swivel(np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), np.array([[0.0, 0.0, 2.0]]), np.array([np.pi / 2]))
     np.testing.assert_allclose(quarter, [[-1.0, 0.0, 0.0]], atol=1e-12)  # right-handed about +z
 
 

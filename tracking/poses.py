@@ -36,7 +36,7 @@ from hoap_actions.primitives.models.class_models import ClassModel
 from hoap_actions.tracking.tracking_models import TrackingModels
 
 __all__ = ["POSE_PROPOSALS", "HandPoses", "OffsetPoses", "PoseProposal", "TurnedHandOffsets", "mean_poses",
-           "pose_proposal", "swivel"]
+           "pose_proposal", "turn_about_vertical"]
 
 POSE_MEMORY = 0.9  # per-frame AR(1) coefficient of a particle's pose state
 SWIVEL_SD_RAD = 0.1  # rad, stationary sd of the elbow's turn about the shoulder-wrist line (validation)
@@ -164,11 +164,16 @@ def turn_hand(hand: np.ndarray, turn: np.ndarray, roll: np.ndarray) -> np.ndarra
     """The index tip, knuckle and thumb ``(n, 9)`` of hands ``(n, 12)`` (wrist first) turned rigidly about the
     wrist: by ``turn`` (n,) rad about the vertical, then by ``roll`` (n,) rad about the turned wrist-knuckle
     line (right-handed)."""
-    wrist, points = hand[:, :3], [hand[:, k:k + 3] for k in (3, 6, 9)]
-    above = wrist + np.array([0.0, 0.0, 1.0])
-    points = [swivel(wrist, point, above, turn) for point in points]
+    wrist = hand[:, :3]
+    points = turn_about_vertical(wrist, [hand[:, k:k + 3] for k in (3, 6, 9)], turn)
     knuckle = points[1]
-    return np.hstack([swivel(wrist, point, knuckle, roll) for point in points])
+    return np.hstack([_swivel(wrist, point, knuckle, roll) for point in points])
+
+
+def turn_about_vertical(wrist: np.ndarray, points: list[np.ndarray], turn: np.ndarray) -> list[np.ndarray]:
+    """``points`` (each (n, 3)) turned by ``turn`` (n,) rad about the vertical through ``wrist`` (n, 3)."""
+    above = wrist + np.array([0.0, 0.0, 1.0])
+    return [_swivel(wrist, point, above, turn) for point in points]
 
 
 class HandPoses:
@@ -219,7 +224,7 @@ class HandPoses:
             pose[:, ARM] += np.einsum("nij,nj->ni", self._gain[class_id][states.astype(int)], shift)
         if self.trunk:
             pose[:, ARM] += np.tile(pose_state[:, 4:7], 2)
-        pose[:, 3:6] = swivel(pose[:, 0:3], pose[:, 3:6], pose[:, 6:9], pose_state[:, 3])
+        pose[:, 3:6] = _swivel(pose[:, 0:3], pose[:, 3:6], pose[:, 6:9], pose_state[:, 3])
         return pose
 
 
@@ -248,7 +253,7 @@ def _shoulder_given_hand_sd(model: ClassModel) -> np.ndarray:
     return np.sqrt(np.maximum(np.diagonal(given, axis1=1, axis2=2), 0.0))
 
 
-def swivel(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angle: np.ndarray) -> np.ndarray:
+def _swivel(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """The elbows ``(n, 3)`` turned by ``angle`` (n,) rad about the shoulder-wrist line (Rodrigues' formula):
     the upper arm and forearm keep their lengths and the hand stays where it is."""
     axis = wrist - shoulder

@@ -20,7 +20,7 @@ import numpy as np
 
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.tracking.image_evidence import image_log_likelihoods
-from hoap_actions.tracking.poses import swivel
+from hoap_actions.tracking.poses import turn_about_vertical
 from hoap_actions.vision.body_model import BodyModel, Projector
 
 __all__ = ["PoseRefiner"]
@@ -67,12 +67,10 @@ class PoseRefiner:
         the vertical through the wrist; the hand shifted; the elbow moved by half the hand's shift and its own."""
         theta = np.atleast_2d(theta)
         out = np.repeat(np.asarray(markers, float)[None], len(theta), axis=0)
-        wrist = out[:, WRIST].copy()
-        hand = out[:, HAND_ROWS]
-        above = wrist + np.array([0.0, 0.0, 1.0])
-        for k in range(1, hand.shape[1]):
-            hand[:, k] = swivel(wrist, hand[:, k], above, theta[:, 3])
-        out[:, HAND_ROWS] = hand + theta[:, None, 0:3]
+        fingers = turn_about_vertical(out[:, WRIST], list(out[:, WRIST + 1:HAND_ROWS.stop].transpose(1, 0, 2)),
+                                      theta[:, 3])
+        out[:, WRIST + 1:HAND_ROWS.stop] = np.stack(fingers, axis=1)
+        out[:, HAND_ROWS] += theta[:, None, 0:3]
         out[:, ELBOW] += 0.5 * theta[:, 0:3] + theta[:, 4:7]
         return out
 
