@@ -216,6 +216,8 @@ def _track(args: argparse.Namespace) -> int:
                                 "--clutter, --noise, --depth, --lag and --refine")
     if not 0 <= args.lag <= MAX_LAG:
         raise InvalidInputError(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
+    if args.fingertip and not args.refine:
+        raise InvalidInputError("--fingertip goes with --refine (the detector's findings hold the refined pose)")
     args.pose_proposal = args.pose_proposal or ("hand" if args.grid_model else "turned" if args.from_markers
                                                 else "offsets")
     with contextlib.ExitStack() as outputs:
@@ -235,13 +237,13 @@ def _track(args: argparse.Namespace) -> int:
                                    silhouette=not args.edges_only, more_cameras=side_cameras(args.side_camera),
                                    pose_proposal=args.pose_proposal, posture=posture,
                                    depth_sensor=DepthSensor() if args.depth else None, lag=args.lag,
-                                   refine={} if args.refine else None)
+                                   refine=_refine_settings(args))
         summary = result.summary()
         if "report" in claimed:
             document = {"demos": str(args.demos), "episode": args.episode, "seed": args.seed,
                         "models": str(args.models or "shipped default models"), "pose_proposal": args.pose_proposal,
                         "posture": None if args.posture is None else str(args.posture), "depth": args.depth,
-                        "refine": args.refine,
+                        "refine": args.refine, "fingertip": args.fingertip,
                         **summary}
             claimed["report"].write_text(json.dumps(document, indent=2) + "\n")
         if "video" in claimed:
@@ -275,6 +277,15 @@ def _track(args: argparse.Namespace) -> int:
         print(f"the manipulation read again as the chain the block's displacement fits: class agrees on "
               f"{summary['read_frame_accuracy']:.0%}")
     return 0
+
+
+def _refine_settings(args: argparse.Namespace) -> dict | None:
+    """The refinement ``track`` asks for: None, the refiner's defaults, or with the shipped fingertip detector."""
+    if not args.refine:
+        return None
+    from hoap_actions.vision.fingertip import shipped_fingertip_detector
+
+    return {"fingertip": shipped_fingertip_detector()} if args.fingertip else {}
 
 
 def _track_grid_reach(args: argparse.Namespace, demos, claimed: dict) -> int:
@@ -502,6 +513,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--refine", action="store_true",
                        help="refine the estimated pose (the smoothed one with --lag) against each frame's images by a "
                             "local search beyond the particles' poses (tracking.refinement.PoseRefiner; slower)")
+    track.add_argument("--fingertip", action="store_true",
+                       help="with --refine: also hold the index tip where the shipped fingertip detector finds it in "
+                            "each view (vision.fingertip)")
     track.add_argument("--grid-model", choices=["linear", "thin-plate"],
                        help="the paper's experiment (Figs. 10-12) on an approach-grid recording: train the approach "
                             "PHMM on its 3 x 3 grid (thin-plate: with a posture model; a minute or more) and track "

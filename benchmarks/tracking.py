@@ -14,7 +14,7 @@ particles), on one episode, rendering excluded, with the demonstration camera al
 runs' own frame rates are in their per-episode figures).
 
     python benchmarks/tracking.py [--seeds 310 311 312] [--episodes 0 13 26 ...] [--clutter --noise 0.03]
-        [--side-camera] [--depth] [--lag 25] [--refine]
+        [--side-camera] [--depth] [--lag 25] [--refine [--fingertip]]
     python benchmarks/tracking.py --speed-only --output results/tracking_speed.json
     python benchmarks/tracking.py --from-markers --output results/tracking_markers.json
 
@@ -75,6 +75,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--refine", action="store_true",
                         help="refine the quoted estimate (the smoothed one with --lag) against its frame's images "
                              "(tracking.refinement.PoseRefiner; the edges-only variant is not refined)")
+    parser.add_argument("--fingertip", action="store_true",
+                        help="with --refine: the refinement also holds the index tip where the shipped fingertip "
+                             "detector finds it in each view (vision.fingertip)")
     parser.add_argument("--lag", type=int, default=0,
                         help="also score fixed-lag smoothed estimates, this many frames behind (the same filter run)")
     parser.add_argument("--no-ablation", action="store_true",
@@ -87,6 +90,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     from hoap_actions.tracking.smoothing import MAX_LAG
     if not 0 <= args.lag <= MAX_LAG:
         parser.error(f"--lag must be 0..{MAX_LAG} frames; got {args.lag}")
+    if args.fingertip and not args.refine:
+        parser.error("--fingertip goes with --refine (the detector's findings hold the refined pose)")
     if args.no_object_place and not args.from_markers:
         parser.error("--no-object-place goes with --from-markers (the camera's tracker has no place term)")
     if args.no_hand_turn and not args.from_markers:
@@ -104,8 +109,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def recording_figures(models, demos, episodes, particles, clutter=False, noise=0.0, silhouette=True,
                       side_camera=False, from_markers=False, depth=False, lag=0, object_place=True,
-                      far_leaps=True, hand_turn=True, pose_sharpening=True, refine=False) -> dict:
-    """Per-episode summaries of one recording, and its pooled figures beside the baselines."""
+                      far_leaps=True, hand_turn=True, pose_sharpening=True, refine=None) -> dict:
+    """Per-episode summaries of one recording, and its pooled figures beside the baselines; ``refine``: the
+    refinement's settings (None: no refinement)."""
     import numpy as np
 
     from hoap_actions.primitives.discovery.estimator import UNKNOWN
@@ -124,7 +130,7 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
             result = track_episode(models, demos, index, particles=particles, seed=0, clutter=clutter,
                                    image_noise=noise, silhouette=silhouette, more_cameras=side_cameras(side_camera),
                                    depth_sensor=DepthSensor() if depth else None, lag=lag,
-                                   refine={} if refine else None)
+                                   refine=refine)
         summary = result.summary()
         held = np.linalg.norm(result.truth_markers[:1] - result.truth_markers, axis=2)
         summary["baseline_rms_m_all"] = float(np.sqrt(np.mean(held**2)))
@@ -136,7 +142,7 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
                                          f"{summary['smoothed']['frame_accuracy']:.0%}" if lag else "")
               + ("" if summary.get("read_frame_accuracy") is None else
                  f"; read from the block {summary['read_frame_accuracy']:.0%}")
-              + (f"; refined {100 * summary['refined']['rms_m_all']:.1f} cm" if refine else ""), flush=True)
+              + (f"; refined {100 * summary['refined']['rms_m_all']:.1f} cm" if refine is not None else ""), flush=True)
     truth = np.concatenate([r["truth"] for r in runs])
     known = truth != UNKNOWN
     majority = np.bincount(truth[known]).argmax()
@@ -167,7 +173,7 @@ def recording_figures(models, demos, episodes, particles, clutter=False, noise=0
         pooled["read_frame_accuracy"] = float(np.mean(read[known] == truth[known]))
     found = [r["frames_to_converge"] for r in runs if r["frames_to_converge"] is not None]
     pooled["frames_to_converge_median"] = float(np.median(found)) if found else None
-    if refine:  # the same estimates refined against their frames (their classes are the estimates')
+    if refine is not None:  # the same estimates refined against their frames (their classes are the estimates')
         refined = [{**r["refined"], "recognized": (r["smoothed"] if lag else r)["recognized"]} for r in runs]
         pooled["refined"] = {**scores(refined), "hz": float(np.median([r["refined"]["hz"] for r in runs]))}
     if lag:
@@ -253,6 +259,10 @@ def main(argv: list[str] | None = None) -> dict:
     variants = ((("markers and block", per_recording, True),) if args.from_markers else
                 (("edges and silhouette", per_recording, True),) if args.no_ablation else
                 (("edges and silhouette", per_recording, True), ("edges only", edges_only, False)))
+    refine = None
+    if args.refine:
+        from hoap_actions.vision.fingertip import shipped_fingertip_detector
+        refine = {"fingertip": shipped_fingertip_detector()} if args.fingertip else {}
     for seed in args.seeds:
         demos = load_demonstrations(ensure_recording("paper", seed, args.data))
         for cues, store, silhouette in variants:
@@ -261,13 +271,14 @@ def main(argv: list[str] | None = None) -> dict:
                                             silhouette, args.side_camera, args.from_markers,
                                             args.depth and silhouette, args.lag, not args.no_object_place,
                                             not args.no_far_leaps, not args.no_hand_turn,
-                                            not args.no_pose_sharpening, args.refine and silhouette)
+                                            not args.no_pose_sharpening, refine if silhouette else None)
     summaries = {title: summarise(store) for title, store, _ in variants}
     result = {
         "protocol": {"seeds": args.seeds, "episodes": args.episodes, "particles": args.particles,
                      "clutter": args.clutter, "image_noise": args.noise, "side_camera": args.side_camera,
                      "from_markers": args.from_markers, "depth": args.depth,
                      "depth_weighs": "pose" if args.depth else None, "lag": args.lag, "refine": args.refine,
+                     "fingertip": args.fingertip,
                      "object_place": args.from_markers and not args.no_object_place,
                      "far_leaps": args.from_markers and not args.no_far_leaps,
                      "hand_turn": args.from_markers and not args.no_hand_turn,

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections import deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
@@ -39,7 +38,7 @@ from hoap_actions.tracking.approach_goal import read_approach_end
 from hoap_actions.tracking.chain_reading import read_manipulation_chain
 from hoap_actions.tracking.object_evidence import OBJECT_PLACE_M
 from hoap_actions.tracking.poses import mean_poses
-from hoap_actions.tracking.refinement import PoseRefiner
+from hoap_actions.tracking.refinement import PoseRefiner, RefinedEstimates
 from hoap_actions.tracking.smoothing import SmoothedFrame
 from hoap_actions.tracking.tracking_models import TrackingModels
 from hoap_actions.vision.body_model import BodyModel
@@ -232,12 +231,12 @@ def track_episode(models: ActionModels, demos: Demonstrations, episode: int, par
                                 pose_sharpening=pose_sharpening, depth_weighs=depth_weighs)
         observe = _Observer(tracker, renderer.backgrounds() if silhouette else None,
                             _block_locator(camera, renderer.object_half_size_m) if object_cue else None)
-        refine_with = _Refined(_refiner(body, views, refine), seed, episode)
+        refine_with = RefinedEstimates(PoseRefiner.from_settings(body, views, refine), seed, episode)
         smoothed: list[SmoothedFrame] = []
         for t in range(ep.T):
             images = renderer.frame(ep, t)
             frames.append(observe(images, renderer.depths()))
-            refine_with.keep(observe.edges, observe.masks, renderer.depths())
+            refine_with.keep(images, observe.edges, observe.masks, renderer.depths())
             smoothed += tracker.smoothed_frames() if lag else []
             refine_with.read(smoothed if lag else frames)
             seen.append(tracker.object_seen)
@@ -383,44 +382,6 @@ class _Observer:
         frame = self.tracker.step(self.edges, masks, seen, depths, object_whole=whole)
         self.spent += time.perf_counter() - started
         return frame
-
-
-def _refiner(body: BodyModel, views: tuple[Camera, ...], settings: Mapping[str, object] | None) -> PoseRefiner | None:
-    """The refiner ``settings`` ask for (None: none), or an error naming the settings it takes."""
-    if settings is None:
-        return None
-    known = {f.name for f in dataclasses.fields(PoseRefiner)} - {"body", "cameras"}
-    if not isinstance(settings, Mapping) or set(settings) - known:
-        raise InvalidInputError(f"refine takes a mapping of {sorted(known)} (or None); got {settings!r}")
-    return PoseRefiner(body, views, **settings)
-
-
-class _Refined:
-    """Each frame's images kept until its estimate is out (``lag`` frames later), then the estimate refined
-    against them (:class:`PoseRefiner`; without one, nothing is kept or refined), searching from the previous
-    frame's parameters: ``refined`` the refined estimates in frame order, ``spent`` their wall time (s)."""
-
-    def __init__(self, refiner: PoseRefiner | None, seed: int, episode: int) -> None:
-        self.refiner, self.rng = refiner, np.random.default_rng([seed, episode, 2])
-        self._images: deque[tuple] = deque()
-        self._last: np.ndarray | None = None
-        self.refined: list[TrackedFrame] | list[SmoothedFrame] = []
-        self.spent = 0.0
-
-    def keep(self, edges: list[np.ndarray], masks: list[np.ndarray] | None,
-             depths: list[np.ndarray] | None) -> None:
-        if self.refiner is not None:
-            self._images.append((edges, masks, depths))
-
-    def read(self, estimates: list[TrackedFrame] | list[SmoothedFrame]) -> None:
-        """Refine the estimates of ``estimates`` (every estimate so far, in frame order) not refined yet."""
-        if self.refiner is None:
-            return
-        started = time.perf_counter()
-        for frame in estimates[len(self.refined):]:
-            markers, self._last = self.refiner.refine(frame.markers, *self._images.popleft(), self.rng, self._last)
-            self.refined.append(replace(frame, markers=markers))
-        self.spent += time.perf_counter() - started
 
 
 def track_markers_episode(models: ActionModels, demos: Demonstrations, episode: int, particles: int = 400,
