@@ -104,3 +104,17 @@ def test_the_shipped_detector_finds_the_fingertip_nearer_than_its_guess_on_recor
     error, guess = np.linalg.norm(found - offsets, axis=1), np.linalg.norm(offsets, axis=1)
     assert len(crops) > 40
     assert np.median(error) < 0.7 * np.median(guess) and np.mean(error < guess) > 0.7
+
+
+def test_the_shipped_detector_is_the_file_its_provenance_names():
+    import hashlib
+    import json
+    from pathlib import Path
+
+    import hoap_actions.vision.fingertip as module
+    from hoap_actions.tracking.fingertip_training import TRAINING_SEEDS
+
+    folder = Path(module.__file__).parent
+    provenance = json.loads((folder / "fingertip_detector.json").read_text())
+    assert provenance["sha256"] == hashlib.sha256((folder / "fingertip_detector.npz").read_bytes()).hexdigest()
+    assert provenance["seeds"] == list(TRAINING_SEEDS) and provenance["samples"] > 10_000

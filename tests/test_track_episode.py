@@ -128,15 +128,18 @@ def test_track_command_writes_the_figures_and_explains_mistakes(small, tmp_path,
     assert report["cues"] == ["edges", "silhouette"] and report["views"] == 1
     edges_only = tmp_path / "edges.json"
     assert main(["track", "--demos", str(path), "--episode", "3", "--particles", "50", "--edges-only",
-                 "--side-camera", "--refine", "--json", str(edges_only)]) == 0
+                 "--side-camera", "--refine", "--fingertip", "--json", str(edges_only)]) == 0
     two_views = json.loads(edges_only.read_text())
     assert two_views["cues"] == ["edges"] and two_views["views"] == 2
-    assert two_views["refine"] and set(two_views["refined"]["rms_m"]) == set(two_views["rms_m"])
+    assert two_views["refine"] and two_views["fingertip"]
+    assert set(two_views["refined"]["rms_m"]) == set(two_views["rms_m"])
     assert "refined against each frame's images" in capsys.readouterr().out
     assert main(["track", "--demos", str(path), "--episode", "3", "--json", str(out)]) == 2  # exists: not replaced
     assert main(["track", "--demos", str(path), "--episode", "9"]) == 2
+    assert main(["track", "--demos", str(path), "--episode", "3", "--fingertip"]) == 2
     errors = capsys.readouterr().err.strip().splitlines()
-    assert len(errors) == 2 and "episode must be in [0, 3]" in errors[1]
+    assert len(errors) == 3 and "episode must be in [0, 3]" in errors[1]
+    assert "--fingertip goes with --refine" in errors[2]
 
 
 def test_a_noisy_recording_with_gaps_is_tracked_against_its_bridged_markers(tmp_path):
