@@ -1,28 +1,18 @@
 """``python -m hoap_actions`` and the ``hoap-actions`` command: the command line of :mod:`hoap_actions.apps.cli`."""
 
-import signal
 import sys
-from typing import NoReturn
 
-EXIT_INTERRUPTED = 130  # as the command line exits on Ctrl-C once it runs
+from hoap_actions._startup import interrupts_end_the_start
 
-
-def _interrupted_while_starting(signum: int, frame: object) -> NoReturn:
-    print("hoap-actions: interrupted while starting; nothing was written", file=sys.stderr)
-    raise SystemExit(EXIT_INTERRUPTED)
+__all__ = ["run"]
 
 
 def run() -> int:
-    """The command line, with Ctrl-C or SIGTERM during its second of imports ending it as during its
-    work (exit 130, one line, no traceback) instead of by the signal itself. A signal the process was
-    started ignoring (SIGINT for a background job of a non-interactive shell) stays ignored throughout."""
-    handlers = {sig: signal.signal(sig, _interrupted_while_starting) for sig in (signal.SIGINT, signal.SIGTERM)
-                if signal.getsignal(sig) is not signal.SIG_IGN}
-    try:
+    """The command line, with Ctrl-C or SIGTERM during its imports ending it as during its work (exit 130, one
+    line, no traceback) instead of by the signal itself; the package's own imports are covered the same way
+    (:mod:`hoap_actions._startup`). A signal the process was started ignoring stays ignored throughout."""
+    with interrupts_end_the_start():
         from hoap_actions.apps.cli import main
-    finally:
-        for sig, handler in handlers.items():
-            signal.signal(sig, handler)
     return main()
 
 
