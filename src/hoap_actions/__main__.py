@@ -1,8 +1,9 @@
 """``python -m hoap_actions`` and the ``hoap-actions`` command: the command line of :mod:`hoap_actions.apps.cli`."""
 
+import signal
 import sys
 
-from hoap_actions._startup import interrupts_end_the_start
+from hoap_actions._startup import EXIT_INTERRUPTED, interrupts_end_the_start
 
 __all__ = ["run"]
 
@@ -13,7 +14,10 @@ def run() -> int:
     (:mod:`hoap_actions._startup`). A signal the process was started ignoring stays ignored throughout."""
     with interrupts_end_the_start():
         from hoap_actions.apps.cli import main
-    return main()
+    code = main()
+    if code == EXIT_INTERRUPTED:  # interrupted and cleaned up: a further Ctrl-C while Python shuts down (its thread
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # joins) would end it by the signal, not with this exit status
+    return code
 
 
 if __name__ == "__main__":
