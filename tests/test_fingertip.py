@@ -118,3 +118,13 @@ def test_the_shipped_detector_is_the_file_its_provenance_names():
     provenance = json.loads((folder / "fingertip_detector.json").read_text())
     assert provenance["sha256"] == hashlib.sha256((folder / "fingertip_detector.npz").read_bytes()).hexdigest()
     assert provenance["seeds"] == list(TRAINING_SEEDS) and provenance["samples"] > 10_000
+
+
+def test_building_the_detector_refuses_an_existing_output_before_any_work(tmp_path):
+    from hoap_actions.errors import DataExistsError
+    from hoap_actions.tracking.fingertip_training import build_fingertip_detector
+
+    (tmp_path / "tip.json").write_text("{}")
+    with pytest.raises(DataExistsError, match="overwrite"):
+        build_fingertip_detector(tmp_path / "no-recordings-here", tmp_path / "tip.npz")
+    assert not (tmp_path / "no-recordings-here").exists()  # nothing recorded

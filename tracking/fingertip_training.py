@@ -23,8 +23,8 @@ import numpy as np
 from hoap_actions.demonstration.datasets import Demonstrations
 from hoap_actions.demonstration.scene import DEMONSTRATOR_CAMERA, DEMONSTRATOR_SIDE_CAMERA
 from hoap_actions.envs.camera import Camera
-from hoap_actions.errors import InvalidInputError
-from hoap_actions.outputs import claimed_file
+from hoap_actions.errors import DataExistsError, InvalidInputError
+from hoap_actions.outputs import check_output_path, claimed_file
 from hoap_actions.tracking.episode import render_frames
 from hoap_actions.vision.fingertip import FingertipDetector, windows
 
@@ -76,6 +76,10 @@ def build_fingertip_detector(data: Path, out: Path, overwrite: bool = False) -> 
     from hoap_actions.demonstration.recording import record
 
     out = Path(out)
+    for target in (out, out.with_suffix(".json")):  # before the quarter of an hour of rendering and training
+        check_output_path(target, "fingertip detector file")
+        if target.exists() and not overwrite:
+            raise DataExistsError(f"{target} exists; give another --out or --overwrite to replace it")
     crops, offsets = [], []
     for seed in TRAINING_SEEDS:
         path = Path(data) / f"{TRAINING_PRESET}-s{seed}.h5"
