@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.apps.videos import side_by_side, write_video
+from hoap_actions.envs.controls import HAND_CONTROL_MODES
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.parallel import ordered_map
 from hoap_actions.seeds import check_seed
@@ -104,7 +105,7 @@ def run_episode(
 def _hand_error_reader(env: gymnasium.Env) -> Callable[[dict[str, np.ndarray]], float] | None:
     """For an ee_delta env, ``obs -> `` the distance (m) of the measured hand from the controller's
     reference, how closely the hand-space controller tracks; None for other control modes."""
-    if env.get_wrapper_attr("control_mode") != "ee_delta":
+    if env.get_wrapper_attr("control_mode") not in HAND_CONTROL_MODES:
         return None
     parse, status = env.get_wrapper_attr("parse_observation"), lambda: env.get_wrapper_attr("hand_status")
     return lambda obs: float(np.linalg.norm(parse(obs)["tcp_position"] - status().reference))

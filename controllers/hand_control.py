@@ -177,6 +177,7 @@ class HandController:
         self.retimer = StreamingRetimer(3, self.dt, limits.velocity, limits.acceleration, limits.jerk)
         self._gripper = robot.joint_index("r_gripper")
         self.target = np.zeros(3)
+        self.heading: float | None = None  # the hand's heading asked of the IK (rad), None: the IK's choice
         self.reference = np.zeros(3)
         self._velocity = np.zeros(3)
         self._correction = np.zeros(3)
@@ -195,6 +196,7 @@ class HandController:
         self.ik.reset(q, *robot.base_pose())
         self.reference = self.ik.hand_position()
         self.target = self.reference.copy()
+        self.heading = None
         self.retimer.reset(self.reference)
         self._velocity = np.zeros(3)
         self._correction = np.zeros(3)
@@ -205,9 +207,11 @@ class HandController:
         self._phase = 0
         self._q_to = robot.targets.copy()
 
-    def set_target(self, position: ArrayLike) -> None:
-        """The world position (3,) the hand should go to (m); reached at the retimer's pace."""
+    def set_target(self, position: ArrayLike, heading: float | None = None) -> None:
+        """The world position (3,) the hand should go to (m), reached at the retimer's pace, and the
+        hand's ``heading`` about the vertical (rad; None leaves it to the IK)."""
         self.target = np.asarray(position, dtype=float).copy()
+        self.heading = None if heading is None else float(heading)
 
     @property
     def unreachable(self) -> bool:
@@ -258,7 +262,7 @@ class HandController:
         target = self.reference + self._correction
         # pressing down on something: the IK target stays within MAX_LEAD below the measured hand
         target[2] = max(target[2], measured[2] - MAX_LEAD)
-        result = self.ik.solve(target)
+        result = self.ik.solve(target, self.heading)
         self._unreached = self._unreached + 1 if result.status != IKStatus.OK else 0
         self.last = result
         return result

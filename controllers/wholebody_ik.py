@@ -394,6 +394,10 @@ class WholeBodyIK:
         """The IK model's hand (tcp) position (3,) in the world (m)."""
         return self.robot.get_T_world_frame(self.hand_frame)[:3, 3]
 
+    def hand_heading(self) -> float:
+        """The IK model's hand heading (rad) about the vertical: the forearm's direction seen from above."""
+        return _yaw(self.robot.get_T_world_frame(self.hand_frame))
+
     def com(self) -> np.ndarray:
         """The IK model's centre of mass (3,) in the world (m)."""
         return self.robot.com_world()

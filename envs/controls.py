@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from hoap_actions.controllers.hand_control import HandController, start_posture
+from hoap_actions.controllers.hand_control import HandController, rest_posture, start_posture
+from hoap_actions.controllers.wholebody_ik import WholeBodyIK
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import TIMESTEP
@@ -92,11 +93,11 @@ class EEDeltaController:
     poses the robot there on the freshly restored world, before the env places the layout.
     """
 
-    def __init__(self, robot: Robot, ik_period: int | None = None) -> None:
+    def __init__(self, robot: Robot, ik_period: int | None = None, ik: WholeBodyIK | None = None) -> None:
         self.robot = robot
         if ik_period is None:
             ik_period = IK_PERIOD["fixed_legs" if robot.fixed_legs else "full"]
-        self.hand = HandController(robot, TIMESTEP, ik_period=ik_period)
+        self.hand = HandController(robot, TIMESTEP, ik=ik, ik_period=ik_period)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.last_clipped = False
         self.desired = np.zeros(3)
@@ -123,16 +124,62 @@ class EEDeltaController:
         self.hand.tick()
 
 
-CONTROL_MODES = {"joint_delta": JointDeltaController, "ee_delta": EEDeltaController}
+MAX_HEADING_STEP = np.radians(3.0)  # rad per action (30 Hz): 90 deg/s
+MAX_HEADING_LEAD = np.radians(30.0)  # rad, the most the desired heading runs ahead of the hand's
+HEADING_WEIGHT = 100.0
+"""Soft weight (per rad^2) of the hand's heading in the IK of ``ee_heading_delta``: at 1 the tilt task
+(weight 1) wins and the hand turns a few degrees; at 100 the IK model turns it 15 degrees to the left
+over the block area with the palm 3-4 degrees more tilted (``docs/envs.md``)."""
+
+
+class EEHeadingDeltaController(EEDeltaController):
+    """``"ee_heading_delta"``: ee_delta with the hand's heading about the vertical: action in [-1, 1]^5.
+
+    ``action[:3]`` moves the desired hand position as in ee_delta; ``action[3]`` turns the desired heading
+    (the forearm's direction seen from above) by up to :data:`MAX_HEADING_STEP` (3 degrees) to the left
+    (positive) or right; ``action[4]`` is the gripper closure. The whole-body IK holds the hand at that
+    heading as a soft task (:data:`HEADING_WEIGHT`): HOAP-3's five-joint arm turns its hand by swinging
+    the elbow, which tilts the palm, so headings far from the one the IK would choose are reached in
+    part. The desired heading is kept within :data:`MAX_HEADING_LEAD` of the IK model's (``last_clipped``
+    says when it was held there); it starts at the hand's heading at reset.
+    """
+
+    def __init__(self, robot: Robot, ik_period: int | None = None) -> None:
+        ik_period = IK_PERIOD["fixed_legs" if robot.fixed_legs else "full"] if ik_period is None else ik_period
+        ik = WholeBodyIK(robot.joint_names, rest_posture(robot), dt=TIMESTEP * ik_period,
+                         fixed_legs=robot.fixed_legs, heading_weight=HEADING_WEIGHT)
+        super().__init__(robot, ik_period, ik)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(5,), dtype=np.float32)
+        self.desired_heading = 0.0
+
+    def reset(self) -> None:
+        """Hold the hand where it is and headed as it is; the gripper keeps its current target."""
+        super().reset()
+        self.desired_heading = self.hand.ik.hand_heading()
+
+    def apply(self, action: np.ndarray) -> None:
+        super().apply(np.asarray(action)[[0, 1, 2, 4]])
+        now = self.hand.ik.hand_heading()
+        lead = float(np.angle(np.exp(1j * (self.desired_heading + MAX_HEADING_STEP * float(action[3]) - now))))
+        held = float(np.clip(lead, -MAX_HEADING_LEAD, MAX_HEADING_LEAD))
+        self.last_clipped = self.last_clipped or held != lead
+        self.desired_heading = now + held
+        self.hand.set_target(self.desired, self.desired_heading)
+
+
+CONTROL_MODES = {"joint_delta": JointDeltaController, "ee_delta": EEDeltaController,
+                 "ee_heading_delta": EEHeadingDeltaController}
+HAND_CONTROL_MODES = ("ee_delta", "ee_heading_delta")
+"""The control modes whose actions move the hand in space (through the hand controller)."""
 
 
 def make_controller(control_mode: str, robot: Robot, ik_period: int | None = None
                     ) -> JointDeltaController | EEDeltaController:
     """The controller for ``control_mode`` (one of :data:`CONTROL_MODES`); ``ik_period`` (ticks per IK
-    step) is ee_delta's alone."""
-    if control_mode != "ee_delta":
+    step) is the hand-space modes' alone (:data:`HAND_CONTROL_MODES`)."""
+    if control_mode not in HAND_CONTROL_MODES:
         if ik_period is not None:
-            raise InvalidInputError(f"ik_period={ik_period!r} applies to control_mode='ee_delta' only; "
-                                    f"leave it None for {control_mode!r}")
+            raise InvalidInputError(f"ik_period={ik_period!r} applies to control_mode in {list(HAND_CONTROL_MODES)} "
+                                    f"only; leave it None for {control_mode!r}")
         return CONTROL_MODES[control_mode](robot)
-    return EEDeltaController(robot, ik_period)
+    return CONTROL_MODES[control_mode](robot, ik_period)

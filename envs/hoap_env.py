@@ -19,7 +19,7 @@ from gymnasium import spaces
 
 from hoap_actions.controllers.hand_control import RobotDescription
 from hoap_actions.envs.camera import Camera, check_image_size
-from hoap_actions.envs.controls import CONTROL_MODES, IK_PERIOD, make_controller
+from hoap_actions.envs.controls import CONTROL_MODES, HAND_CONTROL_MODES, IK_PERIOD, make_controller
 from hoap_actions.envs.robot import ROBOT_MODELS, Robot
 from hoap_actions.envs.scene import Scene
 from hoap_actions.envs.sim import Sim
@@ -105,7 +105,7 @@ class HoapEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": int(round(240 / PHYSICS_STEPS_PER_ACTION))}
     task_cls: ClassVar[type[Task]]
     ik_periods: ClassVar[Mapping[str, int]] = IK_PERIOD
-    """ee_delta's physics ticks per IK step by robot model when ``ik_period`` is not given."""
+    """The hand-space modes' physics ticks per IK step by robot model when ``ik_period`` is not given."""
     robot_stances: ClassVar[Mapping[str, tuple[float, float]]] = {}
     """Where a robot model stands in this env (its ankles' midpoint on the floor, m), when not where
     :class:`~hoap_actions.envs.robot.Robot` stands it by default."""
@@ -150,7 +150,7 @@ class HoapEnv(gymnasium.Env):
             self.camera = camera
             self._render_camera = replace(self.sim.cameras[camera], width=render_width, height=render_height)
             self.task = self.task_cls(self.sim, self.robot, self.scene, **task_kwargs)
-            if ik_period is None and control_mode == "ee_delta":
+            if ik_period is None and control_mode in HAND_CONTROL_MODES:
                 ik_period = self.ik_periods[robot]
             self.controller = make_controller(control_mode, self.robot, ik_period)
             self.robot.reset()
@@ -289,10 +289,11 @@ class HoapEnv(gymnasium.Env):
 
     @property
     def hand_status(self) -> HandStatus:
-        """The hand controller's state (``control_mode="ee_delta"`` only)."""
+        """The hand controller's state (the hand-space control modes only: ``"ee_delta"``, ``"ee_heading_delta"``)."""
         hand = getattr(self.controller, "hand", None)
         if hand is None:
-            raise InvalidInputError(f"hand_status needs control_mode='ee_delta'; this env uses {self.control_mode!r}")
+            raise InvalidInputError(f"hand_status needs control_mode in {list(HAND_CONTROL_MODES)}; "
+                                    f"this env uses {self.control_mode!r}")
         return HandStatus(reference=hand.reference.copy(), unreachable=hand.unreachable, yielding=hand.yielding)
 
     # --------------------------------------------------------------------- internals

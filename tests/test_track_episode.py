@@ -16,7 +16,6 @@ from hoap_actions.models.shipped import load_default_models
 from hoap_actions.tracking import track_episode, track_markers_episode, tracking_video_frames
 from hoap_actions.vision.body_model import BodyModel
 
-
 SHORT_FRAMES = 160  # episode 3's approach (frames 0-138) and the start of its remove
 
 

@@ -1,0 +1,100 @@
+"""``control_mode="ee_heading_delta"``: ee_delta with a channel for the hand's heading about the vertical.
+The API checkers, the heading it reaches in the simulator and the lead it is held to."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.envs.controls import MAX_HEADING_LEAD, MAX_HEADING_STEP
+from hoap_actions.errors import InvalidInputError
+from hoap_actions.policies.block_skills import BlockHand
+
+ENV_ID = "hoap_actions/Imitate-v0"
+MODE = "ee_heading_delta"
+
+
+@pytest.fixture(scope="module")
+def env():
+    env = gymnasium.make(ENV_ID, robot="fixed_legs", control_mode=MODE, demo_image_size=(80, 60))
+    yield env
+    env.close()
+
+
+def _heading(hand: BlockHand) -> float:
+    rotation = hand.hand_rotation()
+    return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
+def _move(env, hand: BlockHand, point, turn: float, steps: int) -> dict:
+    """``steps`` actions taking the hand to ``point`` (3,) with the heading channel at ``turn``."""
+    info = {}
+    for _ in range(steps):
+        step = np.clip((np.asarray(point) - hand.desired) / 0.005, -1.0, 1.0)
+        hand.desired = hand.desired + 0.005 * step
+        obs, _, _, _, info = env.step(np.array([*step, turn, 0.0], dtype=np.float32))
+        hand.observe(obs)
+    return info
+
+
+@pytest.mark.parametrize("env_id", ["hoap_actions/PegInsert-v0", ENV_ID])
+def test_check_env_passes_in_the_heading_mode(env_id):
+    env = gymnasium.make(env_id, control_mode=MODE, robot="fixed_legs")
+    assert env.action_space.shape == (5,)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_the_heading_channel_turns_the_hand_where_it_stands(env):
+    """Over the block area the hand, first headed as the IK model heads it there, turns 15 degrees to
+    the left and back while it stays within 3 mm of its point; with the channel at 0 the heading it was
+    given is kept."""
+    obs, _ = env.reset(seed=90003)
+    hand = BlockHand(env)
+    hand.start(obs)
+    point = np.array([0.0, 0.0, 0.05])
+    own, desired = hand.heading_at(point), hand.desired_heading  # the heading asked starts at the reset's
+    for _ in range(60):
+        turn = float(np.clip((own - desired) / MAX_HEADING_STEP, -1.0, 1.0))
+        desired += turn * MAX_HEADING_STEP
+        _move(env, hand, point, turn, 1)
+    _move(env, hand, point, 0.0, 30)
+    before = _heading(hand)
+    assert abs(np.degrees(before - own)) < 2.0
+    turn_steps = int(round(np.radians(15.0) / MAX_HEADING_STEP))
+    _move(env, hand, point, 1.0, turn_steps)
+    _move(env, hand, point, 0.0, 40)
+    assert np.degrees(_heading(hand) - before) == pytest.approx(15.0, abs=2.0)
+    assert np.linalg.norm(hand.tcp - point) < 0.003
+    kept = _heading(hand)
+    _move(env, hand, point, 0.0, 30)
+    assert abs(np.degrees(_heading(hand) - kept)) < 1.0
+    _move(env, hand, point, -1.0, turn_steps)
+    _move(env, hand, point, 0.0, 40)
+    assert np.degrees(_heading(hand) - before) == pytest.approx(0.0, abs=2.0)
+
+
+def test_the_desired_heading_is_held_within_its_lead_of_the_hand(env):
+    """A heading channel held at +1 runs the desired heading ahead of the hand only as far as
+    :data:`MAX_HEADING_LEAD`, and says so in ``info["target_clipped"]``."""
+    obs, _ = env.reset(seed=90003)
+    hand = BlockHand(env)
+    hand.start(obs)
+    clipped = False
+    for _ in range(40):
+        info = _move(env, hand, hand.tcp, 1.0, 1)
+        clipped = clipped or info["target_clipped"]
+        controller = env.unwrapped.controller
+        lead = np.angle(np.exp(1j * (controller.desired_heading - controller.hand.ik.hand_heading())))
+        assert abs(lead) <= MAX_HEADING_LEAD + 1e-9
+    assert clipped
+
+
+def test_bad_heading_actions_are_refused(env):
+    env.reset(seed=90003)
+    for bad in (np.zeros(4, np.float32), np.array([0, 0, 0, np.nan, 0], np.float32)):
+        with pytest.raises(InvalidInputError, match="5 finite numbers"):
+            env.step(bad)
