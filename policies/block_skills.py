@@ -39,7 +39,7 @@ import numpy as np
 
 from hoap_actions.controllers.hand_control import rest_posture
 from hoap_actions.controllers.wholebody_ik import WholeBodyIK
-from hoap_actions.envs.controls import HAND_BOX_HIGH, HAND_BOX_LOW, MAX_HAND_STEP
+from hoap_actions.envs.controls import HAND_BOX_HIGH, HAND_BOX_LOW, MAX_HAND_STEP, MAX_HEADING_STEP
 from hoap_actions.imitation.imitate_env import BLOCK_SIZE
 from hoap_actions.policies.execution import MOVE_STEPS, REACH_TOLERANCE, REFERENCE_ARRIVED, SETTLE_SPEED
 from hoap_actions.policies.grasp import THUMB_CONTACT_CLOSURE, THUMB_RANGE, thumb_outline
@@ -96,6 +96,9 @@ INNER_SQUARE = np.radians(15.0)  # rad, ... and only for a target this near squa
 INNER_STEER = 0.005  # m, the most the looks shift an inner push towards the thumb's tip: the block sits 5 mm from it
 THUMB_LOW = -THUMB_CONTACT_CLOSURE * THUMB_RANGE  # rad, the thumb's angle to the palm fully open (closure 0)
 THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (closure 1)
+TURNING_MODE = "ee_heading_delta"  # the control mode in which the hand's heading is asked, not the IK's choice
+MAX_LEFT_TURN = np.radians(25.0)  # rad, the most a push turns the hand left of the IK's heading there
+THUMB_MARGIN = np.radians(5.0)  # rad, a turning hand keeps the thumb this far inside its closed stop (the servo's room)
 
 
 def thumb_angle(closure: float) -> float:
@@ -153,8 +156,8 @@ class BlockPose:
 class PushPlan:
     """A thumb push: the face's heading ``face`` (rad, world), the push ``direction`` (unit (2,), the
     pushing face's normal: the outer face's away from the palm, the ``inner`` face's towards it), the
-    thumb's angle to the palm at the end (rad) and the tcp points (3,) where the thumb comes down
-    (``start``) and, ahead of it, that put the block at the target (``end``)."""
+    thumb's angle to the palm at the end (rad), the tcp points (3,) where the thumb comes down
+    (``start``) and, ahead of it, that put the block at the target (``end``), and the hand's ``turn``."""
 
     face: float
     direction: np.ndarray
@@ -162,6 +165,7 @@ class PushPlan:
     start: np.ndarray
     end: np.ndarray
     inner: bool = False
+    turn: float = 0.0  # rad, the hand's turn beyond the IK model's heading (a turning hand only)
 
 
 class BlockHand:
@@ -179,8 +183,13 @@ class BlockHand:
         self._fps = float(env.metadata["render_fps"])
         robot = env.get_wrapper_attr("robot_description")
         self.ik = WholeBodyIK(robot.joint_names, rest_posture(robot), fixed_legs=robot.fixed_legs)
+        self.turns = env.get_wrapper_attr("control_mode") == TURNING_MODE
         self.fields: dict = {}
+        self.start_fields: dict = {}
         self.desired = np.zeros(3)
+        self.desired_heading = 0.0
+        self.leg_heading: tuple[float, float, np.ndarray, float] | None = None
+        self.turn = 0.0  # rad, the turn asked of the hand beyond the IK model's heading (turning mode)
         self.grip = OPEN
         self.looks = 0
         self.seen: BlockDetection | None = None
@@ -190,14 +199,18 @@ class BlockHand:
     def start(self, obs: dict[str, np.ndarray]) -> None:
         """A new episode: the hand holds where it is, the thumb opens."""
         self.fields = self._parse(obs)
+        self.start_fields = self.fields
         self.tcp = self.fields["tcp_position"]
         self.previous_tcp = self.tcp.copy()
         self.desired = self.tcp.copy()
+        self.turn, self.leg_heading = 0.0, None
         self.grip = OPEN
         self.looks = 0
         self.skills = []
         f = self.fields
         self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
+        if self.turns:
+            self.desired_heading = float(np.arctan2(*self.hand_rotation()[1::-1, 0]))
 
     def observe(self, obs: dict[str, np.ndarray]) -> None:
         """This step's observation: the hand's position and joints."""
@@ -224,26 +237,54 @@ class BlockHand:
         return self.ik.hand_pose_at(f["joint_positions"], f["base_position"], f["base_quaternion"])[:3, :3]
 
     def heading_at(self, point: np.ndarray) -> float:
-        """The hand's heading (rad) about the vertical where the IK model puts it at ``point`` (3,)."""
-        f = self.fields
+        """The hand's heading (rad) about the vertical where the IK model puts it at ``point`` (3,). A hand
+        that turns is asked its heading on every leg, so its model starts where the episode did: without a
+        heading asked, the IK leaves the elbow where a turn swung it, and the headings would carry the turns
+        before (on the development set that cost 13 of 54 rotates)."""
+        f = self.start_fields if self.turns else self.fields
         self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
         rotation = self.ik.probe(point).rotation
         return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
 
     # ------------------------------------------------------------------ legs
     def _action(self, target: np.ndarray, speed: float) -> np.ndarray:
-        """The ee_delta action that steps the desired hand point towards ``target`` (straight, at
-        ``speed`` of the limit) with the current grip."""
+        """The action that steps the desired hand point towards ``target`` (straight, at ``speed`` of the
+        limit) with the current grip; a turning hand's heading goes with it (:meth:`_heading_step`)."""
         step = (np.clip(target, HAND_BOX_LOW, HAND_BOX_HIGH) - self.desired) / MAX_HAND_STEP
         step /= max(1.0, float(np.max(np.abs(step))) / speed)
         self.desired = np.clip(self.desired + MAX_HAND_STEP * step, HAND_BOX_LOW, HAND_BOX_HIGH)
-        return np.array([*step, self.grip], dtype=np.float32)
+        if not self.turns:
+            return np.array([*step, self.grip], dtype=np.float32)
+        return np.array([*step, self._heading_step(), self.grip], dtype=np.float32)
+
+    def still(self) -> np.ndarray:
+        """The action that leaves the hand, its heading and the thumb as they are wanted now."""
+        return np.array([0.0, 0.0, 0.0, *([0.0] if self.turns else []), self.grip], dtype=np.float32)
+
+    def _start_leg(self, point: np.ndarray) -> None:
+        """A turning hand's heading over a leg to ``point`` (3,): from the one asked now to the IK model's
+        heading there plus :attr:`turn`, in step with the desired point's progress."""
+        if self.turns:
+            self.leg_heading = (self.desired_heading, self.heading_at(point) + self.turn, self.desired.copy(),
+                                float(np.linalg.norm(point - self.desired)))
+
+    def _heading_step(self) -> float:
+        """The heading channel's action: towards the leg's heading for the desired point's progress."""
+        if self.leg_heading is None:
+            return 0.0
+        start, end, origin, length = self.leg_heading
+        progress = 1.0 if length < 1e-6 else min(1.0, float(np.linalg.norm(self.desired - origin)) / length)
+        goal = start + float(np.angle(np.exp(1j * (end - start)))) * progress
+        step = float(np.clip(np.angle(np.exp(1j * (goal - self.desired_heading))) / MAX_HEADING_STEP, -1.0, 1.0))
+        self.desired_heading += MAX_HEADING_STEP * step
+        return step
 
     def go(self, point: np.ndarray, grip: float | Callable[[], float] | None = None, speed: float = 1.0,
            tolerance: float = REACH_TOLERANCE) -> Iterator[np.ndarray]:
         """A straight leg to ``point`` (3,), ending as the execution layer's legs end; ``grip`` is a
         closure held (None: the current one) or a function called every step (a servo)."""
         point = np.clip(np.asarray(point, dtype=float), HAND_BOX_LOW, HAND_BOX_HIGH)
+        self._start_leg(point)
         waited = 0
         while True:
             if grip is not None:
@@ -340,39 +381,61 @@ class BlockHand:
         the thumb reaches nearest the middle of its range where the hand stands for the push (on the
         thumb's side of the block, about 3.5 cm off)."""
         best = None
+        low, high = self.thumb_reach()
         for k in range(-2, 3):
             face = wrap_quarter(yaw) + k * np.pi / 2
             heading = self.heading_at(np.array([*(target_xy + HAND_OFF * _unit(face + np.pi / 2)), PUSH_Z]))
             thumb = face - heading
-            key = (max(THUMB_LOW - thumb, thumb - THUMB_HIGH, 0.0), abs(thumb - (THUMB_LOW + THUMB_HIGH) / 2))
+            key = (max(low - thumb, thumb - high, 0.0), abs(thumb - (THUMB_LOW + THUMB_HIGH) / 2))
             if best is None or key < best[0]:
                 best = (key, face)
             if key[0] == 0.0 and abs(face) <= np.pi / 4:  # the face whose push goes to the hand's right: the usual
                 break
         return best[1]
 
+    def thumb_reach(self) -> tuple[float, float]:
+        """The thumb's angles to the IK model's heading (rad) an outer-face push reaches: its stops, and
+        for a turning hand as far past the closed one as the hand turns left, less :data:`THUMB_MARGIN`."""
+        if not self.turns:
+            return THUMB_LOW, THUMB_HIGH
+        return THUMB_LOW, THUMB_HIGH - THUMB_MARGIN + MAX_LEFT_TURN
+
+    def hand_turn(self, thumb: float, high: float = THUMB_HIGH) -> float:
+        """The turn (rad) to the left a turning hand takes so that a thumb needing ``thumb`` (rad, to the IK
+        model's heading) past its closed stop ``high`` (or within :data:`THUMB_MARGIN` of it) has the
+        margin; 0 for a hand that does not turn, a thumb inside it, or a turn beyond :data:`MAX_LEFT_TURN`
+        (the push then goes as the untuned hand's, through the turn through). Turning right swings the
+        elbow up and tilts the palm twice as much, and rotates pushed that way were lost on the
+        development set."""
+        if not self.turns or thumb <= high - THUMB_MARGIN:
+            return 0.0
+        turn = thumb - high + THUMB_MARGIN
+        return float(turn) if turn <= MAX_LEFT_TURN else 0.0
+
     def contact_tcp(self, block_xy: np.ndarray, face: float, gap: float,
-                    inner: bool = False) -> tuple[np.ndarray, float]:
+                    inner: bool = False) -> tuple[np.ndarray, float, float]:
         """The tcp point (3,) at push height whose thumb, its outer (or ``inner``) face at heading ``face``,
-        stands ``gap`` (m) off the block at ``block_xy`` (2,), and the thumb's angle to the palm there (rad):
-        the hand's heading is the IK model's where the tcp then is, so the two are found together (three
-        rounds)."""
+        stands ``gap`` (m) off the block at ``block_xy`` (2,), the thumb's angle to the palm there (rad) and
+        the hand's turn (:meth:`hand_turn`): the hand's heading is the IK model's where the tcp then is, so
+        they are found together (three rounds)."""
         tcp = block_xy + (INNER_HAND_OFF if inner else HAND_OFF) * _unit(face + np.pi / 2)
         high = INNER_THUMB_HIGH if inner else THUMB_HIGH
+        turn = 0.0
         for _ in range(3):
             heading = self.heading_at(np.array([*tcp, PUSH_Z]))
-            thumb = float(np.clip(face - heading, THUMB_LOW, high))
-            tcp = self.tcp_for_contact(block_xy, heading, thumb, gap, inner)
-        return np.array([*tcp, PUSH_Z]), thumb
+            turn = self.hand_turn(face - heading, high)
+            thumb = float(np.clip(face - heading - turn, THUMB_LOW, high))
+            tcp = self.tcp_for_contact(block_xy, heading + turn, thumb, gap, inner)
+        return np.array([*tcp, PUSH_Z]), thumb, turn
 
     def plan_push(self, block: BlockPose, target_xy: np.ndarray, face: float,
                   overshoot: float = PUSH_OVERSHOOT, inner: bool = False) -> PushPlan:
         """A push of the block from ``block`` to ``target_xy`` (2,) by the thumb's outer (or ``inner``) face
         at heading ``face`` (rad), along the face's normal, to ``overshoot`` (m) past the target."""
-        start, thumb = self.contact_tcp(block.xy, face, PUSH_GAP, inner)
-        end, _ = self.contact_tcp(target_xy, face, -overshoot, inner)
+        start, thumb, _ = self.contact_tcp(block.xy, face, PUSH_GAP, inner)
+        end, _, turn = self.contact_tcp(target_xy, face, -overshoot, inner)
         direction = _unit(face + np.pi / 2) if inner else _unit(face - np.pi / 2)
-        return PushPlan(face, direction, thumb, start, end, inner)
+        return PushPlan(face, direction, thumb, start, end, inner, turn)
 
     @staticmethod
     def tcp_for_contact(block_xy: np.ndarray, heading: float, thumb: float, gap: float,
@@ -391,15 +454,15 @@ class BlockHand:
     def thumb_needed(self, target_xy: np.ndarray, face: float, inner: bool = False) -> float:
         """The thumb's angle to the palm (rad, not held within its range) that sets its outer (or ``inner``)
         face at ``face`` (rad) for a push that leaves the block at ``target_xy`` (2,)."""
-        tcp, _ = self.contact_tcp(target_xy, face, 0.0, inner)
+        tcp, _, _ = self.contact_tcp(target_xy, face, 0.0, inner)
         return face - self.heading_at(tcp)
 
     def face_reached(self, target_xy: np.ndarray, face: float) -> float:
         """The heading (rad) the thumb's outer face takes for a push that leaves the block at ``target_xy``
-        (2,) with the face asked at ``face`` (rad): ``face`` within the thumb's reach there, else the stop
-        nearest it."""
-        tcp, thumb = self.contact_tcp(target_xy, face, 0.0)
-        return self.heading_at(tcp) + thumb
+        (2,) with the face asked at ``face`` (rad): ``face`` within the thumb's reach there (a turning hand's
+        included), else the stop nearest it."""
+        tcp, thumb, turn = self.contact_tcp(target_xy, face, 0.0)
+        return self.heading_at(tcp) + turn + thumb
 
     def inner_face(self, target_xy: np.ndarray, yaw: float, face: float) -> float | None:
         """The heading (rad) of the thumb's inner face for the push that leaves the block at ``target_xy``
@@ -487,8 +550,10 @@ class BlockHand:
             rotation = self.hand_rotation()
             return closure_for(plan.face - float(np.arctan2(rotation[1, 0], rotation[0, 0])))
 
+        self.turn = plan.turn
         yield from self.travel(np.array([*plan.start[:2], HOVER_Z]), closure_for(plan.thumb))
         yield from self.go(plan.start, servo, speed=0.5, tolerance=0.003)
+        self._start_leg(plan.end)
         line = plan.start[:2].copy()  # the tcp's path: along the push, shifted sideways by the looks
         travelled = 0.0
         full = float((plan.end[:2] - plan.start[:2]) @ direction)
@@ -516,6 +581,7 @@ class BlockHand:
     def retreat(self) -> Iterator[np.ndarray]:
         """Up off the block, then back along the forearm out of the overhead camera's view of it."""
         yield from self.go([*self.tcp[:2], HOVER_Z], speed=0.5, tolerance=0.005)
+        self.turn = 0.0  # off the block: the hand may turn back
         rotation = self.hand_rotation()
         back = self.tcp[:2] - RETREAT * rotation[:2, 0] / np.linalg.norm(rotation[:2, 0])
         yield from self.go([*back, TRAVEL_Z], OPEN, tolerance=0.005)

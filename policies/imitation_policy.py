@@ -37,6 +37,7 @@ import numpy as np
 
 from hoap_actions.demonstration.tasks import MARKER_NAMES
 from hoap_actions.envs import world
+from hoap_actions.envs.controls import HAND_CONTROL_MODES
 from hoap_actions.errors import InvalidInputError
 from hoap_actions.imitation.goals import block_turn
 from hoap_actions.models.shipped import load_default_models
@@ -95,9 +96,12 @@ def frequent_intent(shown: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> Inte
 
 
 class BlockImitation(ABC):
-    """``obs -> action`` on ``hoap_actions/Imitate-v0`` (``control_mode="ee_delta"``, the
-    :class:`~hoap_actions.apps.episodes.Policy` protocol): the skills for an :class:`Intent` (module
-    docstring). Subclasses give the intent (:meth:`intent`)."""
+    """``obs -> action`` on ``hoap_actions/Imitate-v0`` (the :class:`~hoap_actions.apps.episodes.Policy`
+    protocol): the skills for an :class:`Intent` (module docstring). Subclasses give the intent
+    (:meth:`intent`). Its own control mode is ``"ee_delta"``, the hand headed as the IK chooses (a target
+    heading past the thumb's reach is turned through); in an ``"ee_heading_delta"`` env a push turns the hand
+    instead where that suffices (:class:`~hoap_actions.policies.block_skills.BlockHand`; on the development
+    set it was no better over the rotates, ``docs/experiments/imitation.md``)."""
 
     control_mode = "ee_delta"
     env_ids = ("hoap_actions/Imitate-v0",)
@@ -110,9 +114,9 @@ class BlockImitation(ABC):
             raise InvalidInputError(f"{type(self).__name__} imitates a demonstration on its block; it needs one of "
                                     f"{list(self.env_ids)}, not {spec_id or type(env).__name__}")
         control_mode = env.get_wrapper_attr("control_mode")
-        if control_mode != self.control_mode:
-            raise InvalidInputError(f"{type(self).__name__} needs control_mode='ee_delta'; this env uses "
-                                    f"{control_mode!r}")
+        if control_mode not in HAND_CONTROL_MODES:
+            raise InvalidInputError(f"{type(self).__name__} needs control_mode in {list(HAND_CONTROL_MODES)}; this env "
+                                    f"uses {control_mode!r}")
         self.env = env
         self.hand = BlockHand(env)
         self.failure = None
@@ -179,7 +183,7 @@ class BlockImitation(ABC):
                 return next(self.program)
             except StopIteration:
                 self.program, self.finished = None, True
-        return np.array([0.0, 0.0, 0.0, self.hand.grip], dtype=np.float32)
+        return self.hand.still()
 
     def _program(self) -> Iterator[np.ndarray]:
         shown, block = self.shown, self.start_block
@@ -322,10 +326,10 @@ class DoNothing:
     env_ids = ("hoap_actions/Imitate-v0",)
 
     def __init__(self, env: gymnasium.Env) -> None:
-        del env  # it reads nothing
+        self._shape = env.action_space.shape  # all it reads
 
     def reset(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         """Nothing to reset."""
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        return np.zeros(4, dtype=np.float32)
+        return np.zeros(self._shape, dtype=np.float32)

@@ -1,5 +1,6 @@
 """``control_mode="ee_heading_delta"``: ee_delta with a channel for the hand's heading about the vertical.
-The API checkers, the heading it reaches in the simulator and the lead it is held to."""
+The API checkers, the heading it reaches in the simulator and the lead it is held to, and the block
+skills' use of it (a push turns the hand where the thumb cannot reach the target's heading)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,16 @@ from gymnasium.utils.env_checker import check_env
 import hoap_actions  # noqa: F401  (registers the environments)
 from hoap_actions.envs.controls import MAX_HEADING_LEAD, MAX_HEADING_STEP
 from hoap_actions.errors import InvalidInputError
-from hoap_actions.policies.block_skills import BlockHand
+from hoap_actions.policies.block_skills import (
+    MAX_LEFT_TURN,
+    THUMB_HIGH,
+    THUMB_LOW,
+    THUMB_MARGIN,
+    TURN_REACH,
+    BlockHand,
+    wrap_quarter,
+)
+from hoap_actions.policies.imitation_policy import DoNothing
 
 ENV_ID = "hoap_actions/Imitate-v0"
 MODE = "ee_heading_delta"
@@ -98,3 +108,31 @@ def test_bad_heading_actions_are_refused(env):
     for bad in (np.zeros(4, np.float32), np.array([0, 0, 0, np.nan, 0], np.float32)):
         with pytest.raises(InvalidInputError, match="5 finite numbers"):
             env.step(bad)
+
+
+def test_a_turning_hand_turns_left_where_the_thumb_needs_it_and_only_so_far(env):
+    """A face past the thumb's closed stop: the hand turns left so that the thumb keeps
+    :data:`THUMB_MARGIN` inside it, and the face asked is reached; a face needing more than
+    :data:`MAX_LEFT_TURN`, or past the open stop, is left to the hand's own heading (thumb at its stop)."""
+    obs, _ = env.reset(seed=90014)
+    hand = BlockHand(env)
+    hand.start(obs)
+    assert hand.turns
+    target = np.array([0.0, -0.03])
+    tcp, _, turn = hand.contact_tcp(target, 0.0, 0.0)
+    assert turn == 0.0
+    heading = hand.heading_at(tcp)
+    face = heading + THUMB_HIGH + np.radians(12.0)
+    tcp, thumb, turn = hand.contact_tcp(target, face, 0.0)
+    assert 0.0 < turn <= MAX_LEFT_TURN
+    assert thumb == pytest.approx(THUMB_HIGH - THUMB_MARGIN)
+    assert hand.face_reached(target, face) == pytest.approx(face, abs=np.radians(1.0))
+    for face, stop in ((heading + THUMB_HIGH + MAX_LEFT_TURN + np.radians(10.0), THUMB_HIGH),
+                       (heading + THUMB_LOW - np.radians(8.0), THUMB_LOW)):
+        tcp, thumb, turn = hand.contact_tcp(target, face, 0.0)
+        assert turn == 0.0 and thumb == stop
+        assert abs(wrap_quarter(face - hand.face_reached(target, face))) > TURN_REACH
+
+
+def test_doing_nothing_sends_the_modes_zero_action(env):
+    assert DoNothing(env)(env.reset(seed=90003)[0]).shape == (5,)

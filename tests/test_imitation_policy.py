@@ -127,12 +127,12 @@ def test_the_thumbs_face_takes_the_asked_heading_within_reach_and_its_stop_beyon
     hand = BlockHand(env)
     hand.start(obs)
     target = np.array([0.0, -0.03])
-    tcp, _ = hand.contact_tcp(target, 0.0, 0.0)
+    tcp, _, _ = hand.contact_tcp(target, 0.0, 0.0)
     heading = hand.heading_at(tcp)
     within = heading - 0.3  # the thumb 17 degrees open: in its range
     assert hand.face_reached(target, within) == pytest.approx(within, abs=np.radians(1.0))
     for past, stop in ((heading + THUMB_HIGH + 0.5, THUMB_HIGH), (heading + THUMB_LOW - 0.5, THUMB_LOW)):
-        tcp, thumb = hand.contact_tcp(target, past, 0.0)
+        tcp, thumb, _ = hand.contact_tcp(target, past, 0.0)
         assert thumb == stop
         reached = hand.face_reached(target, past)
         assert reached == pytest.approx(hand.heading_at(tcp) + stop)
@@ -299,7 +299,7 @@ def test_the_inner_face_serves_a_square_target_at_the_far_left(env):
     assert outer <= THUMB_LOW + OPEN_STOP_MARGIN
     inner = hand.inner_face(far_left, 0.0, face)
     assert inner is not None and abs(wrap_quarter(inner)) < 1e-9
-    tcp, thumb = hand.contact_tcp(far_left, inner, 0.0, inner=True)
+    tcp, thumb, _ = hand.contact_tcp(far_left, inner, 0.0, inner=True)
     assert thumb == pytest.approx(inner - hand.heading_at(tcp), abs=1e-3)  # in range, not held (3 IK rounds)
     assert THUMB_LOW <= thumb <= INNER_THUMB_HIGH and thumb >= outer + INNER_GAIN
     assert tcp[1] < hand.contact_tcp(far_left, face, 0.0)[0][1]  # it stands further right
