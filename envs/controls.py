@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from hoap_actions.controllers.hand_control import HandController, rest_posture, start_posture
-from hoap_actions.controllers.wholebody_ik import WholeBodyIK
+from hoap_actions.controllers.hand_control import HandController, start_posture
 from hoap_actions.envs import world
 from hoap_actions.envs.robot import Robot
 from hoap_actions.envs.sim import TIMESTEP
@@ -93,11 +92,11 @@ class EEDeltaController:
     poses the robot there on the freshly restored world, before the env places the layout.
     """
 
-    def __init__(self, robot: Robot, ik_period: int | None = None, ik: WholeBodyIK | None = None) -> None:
+    def __init__(self, robot: Robot, ik_period: int | None = None) -> None:
         self.robot = robot
         if ik_period is None:
             ik_period = IK_PERIOD["fixed_legs" if robot.fixed_legs else "full"]
-        self.hand = HandController(robot, TIMESTEP, ik=ik, ik_period=ik_period)
+        self.hand = HandController(robot, TIMESTEP, ik_period=ik_period)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.last_clipped = False
         self.desired = np.zeros(3)
@@ -145,10 +144,8 @@ class EEHeadingDeltaController(EEDeltaController):
     """
 
     def __init__(self, robot: Robot, ik_period: int | None = None) -> None:
-        ik_period = IK_PERIOD["fixed_legs" if robot.fixed_legs else "full"] if ik_period is None else ik_period
-        ik = WholeBodyIK(robot.joint_names, rest_posture(robot), dt=TIMESTEP * ik_period,
-                         fixed_legs=robot.fixed_legs, heading_weight=HEADING_WEIGHT)
-        super().__init__(robot, ik_period, ik)
+        super().__init__(robot, ik_period)
+        self.hand.ik.heading_weight = HEADING_WEIGHT  # read when the first heading is asked
         self.action_space = spaces.Box(-1.0, 1.0, shape=(5,), dtype=np.float32)
         self.desired_heading = 0.0
 

@@ -240,7 +240,7 @@ class BlockHand:
         """The hand's heading (rad) about the vertical where the IK model puts it at ``point`` (3,). A hand
         that turns is asked its heading on every leg, so its model starts where the episode did: without a
         heading asked, the IK leaves the elbow where a turn swung it, and the headings would carry the turns
-        before (on the development set that cost 13 of 54 rotates)."""
+        before."""
         f = self.start_fields if self.turns else self.fields
         self.ik.reset(f["joint_positions"], f["base_position"], f["base_quaternion"])
         rotation = self.ik.probe(point).rotation
@@ -404,9 +404,8 @@ class BlockHand:
         """The turn (rad) to the left a turning hand takes so that a thumb needing ``thumb`` (rad, to the IK
         model's heading) past its closed stop ``high`` (or within :data:`THUMB_MARGIN` of it) has the
         margin; 0 for a hand that does not turn, a thumb inside it, or a turn beyond :data:`MAX_LEFT_TURN`
-        (the push then goes as the untuned hand's, through the turn through). Turning right swings the
-        elbow up and tilts the palm twice as much, and rotates pushed that way were lost on the
-        development set."""
+        (the push then goes as the unturned hand's, through the turn through). Turning right tilts the palm
+        far more than turning left (``docs/envs.md``)."""
         if not self.turns or thumb <= high - THUMB_MARGIN:
             return 0.0
         turn = thumb - high + THUMB_MARGIN
