@@ -17,6 +17,7 @@ from hoap_actions.tracking import track_episode, track_markers_episode, tracking
 from hoap_actions.vision.body_model import BodyModel
 
 SHORT_FRAMES = 145  # episode 3's approach (frames 0-138) and the start of its remove
+TINY_FRAMES = 40  # the start of episode 3's approach: enough for the command's plumbing
 
 
 @pytest.fixture(scope="module")
@@ -24,12 +25,12 @@ def small(small_demos):
     return small_demos
 
 
-def _cut(demos):
-    """``demos`` with episode 3 cut to its first :data:`SHORT_FRAMES` frames."""
+def _cut(demos, frames=SHORT_FRAMES):
+    """``demos`` with episode 3 cut to its first ``frames`` frames."""
     episode = demos[3]
-    truth = dataclasses.replace(episode.ground_truth, labels=episode.ground_truth.labels[:SHORT_FRAMES])
-    cut = dataclasses.replace(episode, H=episode.H[:SHORT_FRAMES], O=episode.O[:SHORT_FRAMES],
-                              Q=episode.Q[:SHORT_FRAMES], ground_truth=truth)
+    truth = dataclasses.replace(episode.ground_truth, labels=episode.ground_truth.labels[:frames])
+    cut = dataclasses.replace(episode, H=episode.H[:frames], O=episode.O[:frames], Q=episode.Q[:frames],
+                              ground_truth=truth)
     return dataclasses.replace(demos, episodes=(*demos.episodes[:3], cut))
 
 
@@ -38,6 +39,12 @@ def short(small_demos):
     """The small recording with episode 3 cut to its approach and the start of its remove: the tests that
     track it from images check a tracked episode's shape, its determinism and the plumbing, not its scores."""
     return _cut(small_demos)
+
+
+@pytest.fixture(scope="module")
+def tiny(small_demos):
+    """The small recording with episode 3 cut to the first :data:`TINY_FRAMES` frames of its approach."""
+    return _cut(small_demos, TINY_FRAMES)
 
 
 def test_tracks_an_episode_from_rendered_frames(short):
@@ -129,19 +136,19 @@ def test_refuses_what_it_cannot_track(small):
         track_episode(models, small, 0, particles=0)
 
 
-def test_track_command_writes_the_figures_and_explains_mistakes(short, tmp_path, capsys):
+def test_track_command_writes_the_figures_and_explains_mistakes(tiny, tmp_path, capsys):
     from hoap_actions.apps.cli import main
     from hoap_actions.demonstration.datasets import write_demonstrations
 
-    path = tmp_path / "short.h5"
-    write_demonstrations(path, short)
+    path = tmp_path / "tiny.h5"
+    write_demonstrations(path, tiny)
     out = tmp_path / "track.json"
     assert main(["track", "--demos", str(path), "--episode", "3", "--particles", "50", "--json", str(out),
                  "--figure", str(tmp_path / "fig11.png")]) == 0
     report = json.loads(out.read_text())
     assert {"rms_m", "rms_m_all", "hz", "particles", "frames", "phi_error_m", "frames_to_converge", "recognized",
             "truth"} <= set(report)
-    assert report["particles"] == 50 and len(report["recognized"]) == report["frames"] == short[3].T
+    assert report["particles"] == 50 and len(report["recognized"]) == report["frames"] == tiny[3].T
     assert (tmp_path / "fig11.png").stat().st_size > 0
     assert report["cues"] == ["edges", "silhouette"] and report["views"] == 1
     edges_only = tmp_path / "edges.json"
@@ -162,7 +169,7 @@ def test_track_command_writes_the_figures_and_explains_mistakes(short, tmp_path,
 
 def test_a_noisy_recording_with_gaps_is_tracked_against_its_bridged_markers(tmp_path):
     noisy = _cut(load_demonstrations(record("small", tmp_path / "noisy.h5", seed=0, progress=False,
-                                            noise="marker=1,gaps=2,object=1,angle=1")))
+                                            noise="marker=1,gaps=2,object=1,angle=1")), TINY_FRAMES)
     assert np.isnan(noisy[3].H).any()  # markers missing in some frames
     summary = track_episode(load_default_models(), noisy, 3, particles=50, seed=0).summary()
     assert np.isfinite(summary["rms_m_all"]) and summary["rms_m"]["shoulder"] < 0.05
@@ -211,7 +218,7 @@ def test_tracks_from_the_recorded_markers_and_block(small, tmp_path, capsys):
     assert "--lag must be 0.." in capsys.readouterr().err.strip().splitlines()[-1]
 
 
-def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):
+def test_pose_floor_agrees_with_the_phmm_synthesized_path(short):
     """The floor's best phase per frame, cross-checked against the PHMM's own synthesis: the path through the
     state means at the segment's effect, sampled densely, comes as close to each frame within a few mm."""
     import warnings
@@ -221,11 +228,11 @@ def test_pose_floor_agrees_with_the_phmm_synthesized_path(small):
     from hoap_actions.tracking import pose_floor
 
     models = load_default_models()
-    episode = 3  # the bare approach: one approach, then the remove
-    floor = pose_floor(models, small, episode)
-    fitted = pose_floor(models, small, episode, fit_effect=True)
-    H = small[episode].H
-    truth = models.discovery_.predict(small[episode].O, [small[episode].T])[0]
+    episode = 3  # the bare approach, cut: its approach and the start of its remove
+    floor = pose_floor(models, short, episode)
+    fitted = pose_floor(models, short, episode, fit_effect=True)
+    H = short[episode].H
+    truth = models.discovery_.predict(short[episode].O, [short[episode].T])[0]
     width, hand = 3 * len(models.marker_names_), models.discovery_.hand_marker
     checked = improved = 0
     for cid, start, end in runs(truth):
