@@ -99,6 +99,7 @@ THUMB_HIGH = (1.0 - THUMB_CONTACT_CLOSURE) * THUMB_RANGE  # rad, fully closed (c
 TURNING_MODE = "ee_heading_delta"  # the control mode in which the hand's heading is asked, not the IK's choice
 MAX_LEFT_TURN = np.radians(25.0)  # rad, the most a push turns the hand left of the IK's heading there
 THUMB_MARGIN = np.radians(5.0)  # rad, a turning hand keeps the thumb this far inside its closed stop (the servo's room)
+REACH_SLACK = np.radians(1.0)  # rad, a turning hand's face this near the asked one is reached
 
 
 def thumb_angle(closure: float) -> float:
@@ -381,24 +382,22 @@ class BlockHand:
         the thumb reaches nearest the middle of its range where the hand stands for the push (on the
         thumb's side of the block, about 3.5 cm off)."""
         best = None
-        low, high = self.thumb_reach()
         for k in range(-2, 3):
             face = wrap_quarter(yaw) + k * np.pi / 2
-            heading = self.heading_at(np.array([*(target_xy + HAND_OFF * _unit(face + np.pi / 2)), PUSH_Z]))
-            thumb = face - heading
-            key = (max(low - thumb, thumb - high, 0.0), abs(thumb - (THUMB_LOW + THUMB_HIGH) / 2))
+            if self.turns:  # where the turn is reached depends on where the turned hand stands: plan the contact
+                tcp, thumb, turn = self.contact_tcp(target_xy, face, 0.0)
+                needed = face - self.heading_at(tcp)
+                miss = abs(needed - turn - thumb)  # within a degree: the planned and the probed tcp's headings
+                key = (miss if miss > REACH_SLACK else 0.0, abs(needed - (THUMB_LOW + THUMB_HIGH) / 2))
+            else:
+                heading = self.heading_at(np.array([*(target_xy + HAND_OFF * _unit(face + np.pi / 2)), PUSH_Z]))
+                thumb = face - heading
+                key = (max(THUMB_LOW - thumb, thumb - THUMB_HIGH, 0.0), abs(thumb - (THUMB_LOW + THUMB_HIGH) / 2))
             if best is None or key < best[0]:
                 best = (key, face)
             if key[0] == 0.0 and abs(face) <= np.pi / 4:  # the face whose push goes to the hand's right: the usual
                 break
         return best[1]
-
-    def thumb_reach(self) -> tuple[float, float]:
-        """The thumb's angles to the IK model's heading (rad) an outer-face push reaches: its stops, and
-        for a turning hand as far past the closed one as the hand turns left, less :data:`THUMB_MARGIN`."""
-        if not self.turns:
-            return THUMB_LOW, THUMB_HIGH
-        return THUMB_LOW, THUMB_HIGH - THUMB_MARGIN + MAX_LEFT_TURN
 
     def hand_turn(self, thumb: float, high: float = THUMB_HIGH) -> float:
         """The turn (rad) to the left a turning hand takes so that a thumb needing ``thumb`` (rad, to the IK
@@ -411,18 +410,18 @@ class BlockHand:
         turn = thumb - high + THUMB_MARGIN
         return float(turn) if turn <= MAX_LEFT_TURN else 0.0
 
-    def contact_tcp(self, block_xy: np.ndarray, face: float, gap: float,
-                    inner: bool = False) -> tuple[np.ndarray, float, float]:
+    def contact_tcp(self, block_xy: np.ndarray, face: float, gap: float, inner: bool = False,
+                    turn: float | None = None) -> tuple[np.ndarray, float, float]:
         """The tcp point (3,) at push height whose thumb, its outer (or ``inner``) face at heading ``face``,
         stands ``gap`` (m) off the block at ``block_xy`` (2,), the thumb's angle to the palm there (rad) and
-        the hand's turn (:meth:`hand_turn`): the hand's heading is the IK model's where the tcp then is, so
-        they are found together (three rounds)."""
+        the hand's turn (``turn`` if given, else :meth:`hand_turn`): the hand's heading is the IK model's
+        where the tcp then is, so they are found together (three rounds)."""
         tcp = block_xy + (INNER_HAND_OFF if inner else HAND_OFF) * _unit(face + np.pi / 2)
         high = INNER_THUMB_HIGH if inner else THUMB_HIGH
-        turn = 0.0
+        fixed = turn
         for _ in range(3):
             heading = self.heading_at(np.array([*tcp, PUSH_Z]))
-            turn = self.hand_turn(face - heading, high)
+            turn = self.hand_turn(face - heading, high) if fixed is None else fixed
             thumb = float(np.clip(face - heading - turn, THUMB_LOW, high))
             tcp = self.tcp_for_contact(block_xy, heading + turn, thumb, gap, inner)
         return np.array([*tcp, PUSH_Z]), thumb, turn
@@ -430,9 +429,10 @@ class BlockHand:
     def plan_push(self, block: BlockPose, target_xy: np.ndarray, face: float,
                   overshoot: float = PUSH_OVERSHOOT, inner: bool = False) -> PushPlan:
         """A push of the block from ``block`` to ``target_xy`` (2,) by the thumb's outer (or ``inner``) face
-        at heading ``face`` (rad), along the face's normal, to ``overshoot`` (m) past the target."""
-        start, thumb, _ = self.contact_tcp(block.xy, face, PUSH_GAP, inner)
+        at heading ``face`` (rad), along the face's normal, to ``overshoot`` (m) past the target; a turning
+        hand keeps the turn the push's end needs all along."""
         end, _, turn = self.contact_tcp(target_xy, face, -overshoot, inner)
+        start, thumb, _ = self.contact_tcp(block.xy, face, PUSH_GAP, inner, turn)
         direction = _unit(face + np.pi / 2) if inner else _unit(face - np.pi / 2)
         return PushPlan(face, direction, thumb, start, end, inner, turn)
 
