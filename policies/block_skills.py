@@ -1,23 +1,24 @@
 """The robot's hand skills on the block of ``Imitate-v0``: approach, place (grasp, slide, let go) and push.
 
-The action space is ``ee_delta``: the hand's position and the thumb's closure, no twist of the wrist. The
-hand's heading about the vertical is the whole-body IK's choice, a function of where the hand is (3 to
-4 degrees more per centimetre to the left, from the IK model's probes of both robots; none of it depends
-on the path there). So the palm can only press on the block at the heading of where it stands, and a grasp turns the
-block to it (the squeeze lays a face flat on the palm). The thumb is the one face whose heading the
-policy sets: it pivots on the hand, from 45 degrees open to 15 degrees past parallel with the palm, and
-the closure turns it (:func:`thumb_angle`). Its outer face pushes the block away from the hand's thumb
-side, and a cube pushed by a flat face turns until a face lies flat on it: a push with the thumb held
-at the target's heading (the closure servoed against the hand's measured heading, every step) moves the
-block along the face's normal and leaves it turned as the target. That push is the skill every block
-target ends with; where the block is not already behind its target on that line, a grasp first slides
-it there (:meth:`BlockHand.place`). Where the outer face would need the thumb at its open stop and the
-target is near square, the thumb's inner face pushes instead (the block between thumb and palm, pushed
-the other way), its hand standing further right and so headed less to the left
-(:meth:`BlockHand.inner_face`). Where no heading the thumb reaches is the target's, a turn through
+The hand's heading about the vertical is, in ``ee_delta``, the whole-body IK's choice, a function of
+where the hand is (3 to 4 degrees more per centimetre to the left, from the IK model's probes of both
+robots; none of it depends on the path there). So the palm can only press on the block at the heading of
+where it stands, and a grasp turns the block to it (the squeeze lays a face flat on the palm). The thumb
+is the one face whose heading the policy sets: it pivots on the hand, from 45 degrees open to 15 degrees
+past parallel with the palm, and the closure turns it (:func:`thumb_angle`). Its outer face pushes the
+block away from the hand's thumb side, and a cube pushed by a flat face turns until a face lies flat on
+it: a push with the thumb held at the target's heading (the closure servoed against the hand's measured
+heading, every step) moves the block along the face's normal and leaves it turned as the target. That
+push is the skill every block target ends with; where the block is not already behind its target on that
+line, a grasp first slides it there (:meth:`BlockHand.place`). Where the outer face would need the thumb
+at its open stop and the target is near square, the thumb's inner face pushes instead (the block between
+thumb and palm, pushed the other way), its hand standing further right and so headed less to the left
+(:meth:`BlockHand.inner_face`). In ``ee_heading_delta`` (the imitation policies' mode) the hand's heading
+is asked too: a push whose face lies past the thumb's closed stop turns the hand left, up to 25 degrees,
+instead (:meth:`BlockHand.hand_turn`). Where no heading the thumb reaches is the target's, a turn through
 (:meth:`BlockHand.turn_through`) pushes the block past that heading first and then back through it.
 
-Skills are generators: each ``next()`` gives the ee_delta action for the current step, the hand's fields
+Skills are generators: each ``next()`` gives the action for the current step, the hand's fields
 having been updated by :meth:`BlockHand.observe`. Hand paths are legs of the execution layer
 (:mod:`~hoap_actions.policies.execution`): the desired point steps at the hand's speed limit (or a
 fraction of it), and a leg ends when the controller's reference has arrived and the measured hand has
@@ -170,7 +171,8 @@ class PushPlan:
 
 
 class BlockHand:
-    """The hand of a robot in an ``Imitate-v0`` env (``control_mode="ee_delta"``) and its skills on the block.
+    """The hand of a robot in an ``Imitate-v0`` env (``control_mode`` ``"ee_delta"`` or ``"ee_heading_delta"``)
+    and its skills on the block.
 
     It reads the hand through the observation (``parse_observation``), the controller's reference through
     ``hand_status``, the block through the overhead camera (``capture``), and asks its own whole-body IK
