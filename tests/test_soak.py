@@ -1,8 +1,8 @@
 """Soak: 10 000 random and 10 000 bang-bang actions in each control mode (slow; run with ``-m slow``).
 
 Episodes are reset on ``terminated`` or ``truncated``. In every run the observations stay finite and
-the process's resident memory stays flat after a warm-up. Under ``ee_delta`` the robot never falls:
-the whole-body IK keeps the centre of mass over the feet and the hand yields to balance. Under
+the process's resident memory stays flat after a warm-up. Under ``ee_delta`` and ``ee_heading_delta`` the
+robot never falls: the whole-body IK keeps the centre of mass over the feet and the hand yields to balance. Under
 ``joint_delta`` a random waist lean may topple it (the env reports the fall and the episode is
 reset). In both modes no joint ever turns faster than its servo's limit.
 """
@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import hoap_actions  # noqa: F401  (registers the environments)
+from hoap_actions.envs.controls import HAND_CONTROL_MODES
 
 STEPS = 10_000
 SEED = 7
@@ -44,7 +45,7 @@ def _action(kind: str, rng: np.random.Generator, shape: tuple[int, ...]) -> np.n
 
 
 @pytest.mark.parametrize("kind", ["random", "bang_bang"])
-@pytest.mark.parametrize("control_mode", ["joint_delta", "ee_delta"])
+@pytest.mark.parametrize("control_mode", ["joint_delta", "ee_delta", "ee_heading_delta"])
 def test_soak_10000_steps(control_mode, kind):
     env = gymnasium.make("hoap_actions/PegInsert-v0", control_mode=control_mode)
     limits = env.unwrapped.robot.max_velocity
@@ -70,5 +71,5 @@ def test_soak_10000_steps(control_mode, kind):
     assert episodes > STEPS // 600, f"only {episodes} episodes: the time limit should end one every 600 steps"
     assert growth < MEMORY_GROWTH_MB, f"resident memory grew {growth:.1f} MB over {STEPS - WARM_UP} steps"
     assert fastest <= 1.0 + SPEED_TOLERANCE, f"a joint reached {fastest:.3f} times its velocity limit"
-    if control_mode == "ee_delta":
-        assert not falls, f"the robot fell at steps {falls[:10]} of {STEPS} {kind} ee_delta actions"
+    if control_mode in HAND_CONTROL_MODES:
+        assert not falls, f"the robot fell at steps {falls[:10]} of {STEPS} {kind} {control_mode} actions"
