@@ -13,7 +13,7 @@ push is the skill every block target ends with; where the block is not already b
 line, a grasp first slides it there (:meth:`BlockHand.place`). Where the outer face would need the thumb
 at its open stop and the target is near square, the thumb's inner face pushes instead (the block between
 thumb and palm, pushed the other way), its hand standing further right and so headed less to the left
-(:meth:`BlockHand.inner_face`). In ``ee_heading_delta`` the hand's heading
+(:meth:`BlockHand.inner_face`). In ``ee_heading_delta`` (the imitation policies' mode) the hand's heading
 is asked too: a push whose face lies past the thumb's closed stop turns the hand left, up to 25 degrees,
 instead (:meth:`BlockHand.hand_turn`). Where no heading the thumb reaches is the target's, a turn through
 (:meth:`BlockHand.turn_through`) pushes the block past that heading first and then back through it.

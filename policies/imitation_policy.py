@@ -98,12 +98,12 @@ def frequent_intent(shown: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> Inte
 class BlockImitation(ABC):
     """``obs -> action`` on ``hoap_actions/Imitate-v0`` (the :class:`~hoap_actions.apps.episodes.Policy`
     protocol): the skills for an :class:`Intent` (module docstring). Subclasses give the intent
-    (:meth:`intent`). Its own control mode is ``"ee_delta"``, the hand headed as the IK chooses (a target
-    heading past the thumb's reach is turned through); in an ``"ee_heading_delta"`` env a push turns the hand
-    instead where that suffices (:class:`~hoap_actions.policies.block_skills.BlockHand`; better on the free
-    robot's development set, a wash on the welded robot's, not yet held out: ``docs/experiments/imitation.md``)."""
+    (:meth:`intent`). Its own control mode is ``"ee_heading_delta"``: a push whose face lies past the thumb's
+    closed stop turns the hand left instead of turning the block through
+    (:class:`~hoap_actions.policies.block_skills.BlockHand`); in an ``"ee_delta"`` env the hand is headed as
+    the IK chooses."""
 
-    control_mode = "ee_delta"
+    control_mode = "ee_heading_delta"
     env_ids = ("hoap_actions/Imitate-v0",)
     taken_from = "told the true action"  # how the intent was had, written on the video
     failure: str | None
@@ -322,7 +322,7 @@ class DoNothing:
 
     failure: str | None = None
     done = True
-    control_mode = "ee_delta"
+    control_mode = "ee_heading_delta"  # the imitation policies' own, so that it runs beside them
     env_ids = ("hoap_actions/Imitate-v0",)
 
     def __init__(self, env: gymnasium.Env) -> None:

@@ -48,6 +48,16 @@ SEEDS = {"approach": 90003, "push": 90014, "move": 90006, "rotate": 90008}  # va
 
 @pytest.fixture(scope="module")
 def env():
+    env = gymnasium.make(ENV_ID, robot="fixed_legs", control_mode=ExecutionCeiling.control_mode,
+                         demo_image_size=(80, 60))
+    yield env
+    env.close()
+
+
+@pytest.fixture(scope="module")
+def plain():
+    """The env in ``ee_delta``: the hand headed as the IK chooses, where a turn out of the thumb's reach is
+    turned through."""
     env = gymnasium.make(ENV_ID, robot="fixed_legs", control_mode="ee_delta", demo_image_size=(80, 60))
     yield env
     env.close()
@@ -67,6 +77,15 @@ def test_the_oracle_imitates_a_short_episode_of_each_action(env, action):
     assert policy.skills == [action]
 
 
+def test_the_skills_also_run_with_the_hand_headed_as_the_ik_chooses(plain):
+    """The policies' own mode asks the hand's heading; in ``ee_delta`` the same skills run without the turn."""
+    assert ExecutionCeiling.control_mode == "ee_heading_delta" == DoNothing.control_mode
+    policy = ExecutionCeiling(plain)
+    result = run_episode(plain, policy, SEEDS["push"])
+    assert result.success, result
+    assert policy.skills == ["push"] and not policy.hand.turns
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("action, skills", [("move", {"place", "push"}), ("rotate", {"place", "push", "turn through"})])
 def test_the_oracle_imitates_a_move_and_a_rotate(env, action, skills):
@@ -78,15 +97,25 @@ def test_the_oracle_imitates_a_move_and_a_rotate(env, action, skills):
 
 
 @pytest.mark.slow
-def test_a_turn_out_of_the_thumbs_reach_is_turned_through(env):
+def test_a_turn_out_of_the_thumbs_reach_is_turned_through(plain):
     """A rotate 3 cm right of the centre line, by 60 degrees clockwise: no thumb heading there leaves the
     block turned as the target (validation episode 90065, missed before this skill); turned past the
     target and pushed back through it, it ends there."""
-    policy = ExecutionCeiling(env)
-    result = run_episode(env, policy, 90065)
-    assert env.get_wrapper_attr("true_demonstration")().action == "rotate"
+    policy = ExecutionCeiling(plain)
+    result = run_episode(plain, policy, 90065)
+    assert plain.get_wrapper_attr("true_demonstration")().action == "rotate"
     assert result.success, result
     assert policy.skills[:2] == ["turn through", "place"], policy.skills
+
+
+@pytest.mark.slow
+def test_a_turning_hand_pushes_that_rotate_with_its_thumb_at_the_target_heading(env):
+    """The same rotate in the policies' own mode: the hand turns left for the push, so the thumb holds the
+    target's heading and one push ends it there, with no turn through."""
+    policy = ExecutionCeiling(env)
+    result = run_episode(env, policy, 90065)
+    assert result.success, result
+    assert policy.skills == ["place", "push"], policy.skills
 
 
 @pytest.mark.slow
@@ -101,23 +130,23 @@ def test_a_square_target_at_the_far_left_is_pushed_there_by_the_thumbs_inner_fac
     assert "inner push" in policy.skills and "push" not in policy.skills, policy.skills
 
 
-def test_a_move_whose_target_needs_a_turn_through_is_not_grasped_onto_it_first(env):
+def test_a_move_whose_target_needs_a_turn_through_is_not_grasped_onto_it_first(plain):
     """A move to a target turned past the thumb's reach (validation episode 90021): a grasp would leave
     the block turned as the hand, so the turn through's own run-up is the first skill, not a grasp at
     the target."""
-    obs, info = env.reset(seed=90021)
-    assert env.get_wrapper_attr("true_demonstration")().action == "move"
-    policy = ExecutionCeiling(env)
+    obs, info = plain.reset(seed=90021)
+    assert plain.get_wrapper_attr("true_demonstration")().action == "move"
+    policy = ExecutionCeiling(plain)
     policy.reset(obs, info)
-    obs, *_ = env.step(policy(obs))  # the first step plans the episode and starts its first skill
+    obs, *_ = plain.step(policy(obs))  # the first step plans the episode and starts its first skill
     assert policy.skills and policy.skills[0] == "turn through", policy.skills
 
 
 @pytest.mark.slow
-def test_a_move_whose_target_needs_a_turn_through_ends_there(env):
+def test_a_move_whose_target_needs_a_turn_through_ends_there(plain):
     """The same move, run to its end, reaches its target (missed while it was first grasped onto it)."""
-    policy = ExecutionCeiling(env)
-    result = run_episode(env, policy, 90021)
+    policy = ExecutionCeiling(plain)
+    result = run_episode(plain, policy, 90021)
     assert result.success, result
     assert policy.skills[0] == "turn through" and "place" in policy.skills, policy.skills
 

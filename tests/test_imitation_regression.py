@@ -16,7 +16,7 @@ REQUIRED = 0.90  # the success the loop must keep on them
 
 @pytest.mark.slow
 def test_the_robot_imitates_what_its_camera_saw_on_50_fixed_episodes():
-    env = gymnasium.make("hoap_actions/Imitate-v0", robot="fixed_legs", control_mode="ee_delta")
+    env = gymnasium.make("hoap_actions/Imitate-v0", robot="fixed_legs", control_mode=CameraImitation.control_mode)
     policy = CameraImitation(env)
     results = [run_episode(env, policy, seed) for seed in SEEDS]
     env.close()
